@@ -1,0 +1,58 @@
+"""The MITL front end: grammar, parser, AST and canonical printer."""
+
+from mitlc.syntax.ast import (
+    FALSE,
+    TRUE,
+    UNBOUNDED,
+    Always,
+    And,
+    Atom,
+    Bool,
+    Eventually,
+    Formula,
+    Iff,
+    Implies,
+    Interval,
+    Next,
+    Not,
+    Or,
+    Release,
+    Span,
+    Until,
+    atoms,
+    children,
+    subformulas,
+)
+from mitlc.syntax.parser import decode, parse, parse_bytes, parse_file
+from mitlc.syntax.printer import to_text
+from mitlc.syntax.to_json import ast_to_data
+
+__all__ = [
+    "FALSE",
+    "TRUE",
+    "UNBOUNDED",
+    "Always",
+    "And",
+    "Atom",
+    "Bool",
+    "Eventually",
+    "Formula",
+    "Iff",
+    "Implies",
+    "Interval",
+    "Next",
+    "Not",
+    "Or",
+    "Release",
+    "Span",
+    "Until",
+    "ast_to_data",
+    "atoms",
+    "children",
+    "decode",
+    "parse",
+    "parse_bytes",
+    "parse_file",
+    "subformulas",
+    "to_text",
+]
