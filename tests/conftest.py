@@ -30,6 +30,6 @@ def check_golden(path: Path, actual: str, update: bool) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(actual, encoding="utf-8")
         return
-    assert path.exists(), f"missing golden file {path}; run pytest --update-golden and read the diff"
+    assert path.exists(), f"missing golden {path}; run pytest --update-golden, read the diff"
     expected = path.read_text(encoding="utf-8")
     assert actual == expected, f"{path.name} differs from its golden file"

@@ -118,9 +118,7 @@ def test_precedence_and_associativity(text: str, expected: object) -> None:
 
 def test_paper_task() -> None:
     formula = parse("(!a U[5,10] a) & (!b U[15,20] b)")
-    assert formula == And(
-        Until(Interval(5, 10), Not(a), a), Until(Interval(15, 20), Not(b), b)
-    )
+    assert formula == And(Until(Interval(5, 10), Not(a), a), Until(Interval(15, 20), Not(b), b))
     assert atoms(formula) == ("a", "b")
 
 

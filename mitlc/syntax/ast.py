@@ -17,7 +17,7 @@ from typing import TypeAlias
 
 @dataclass(frozen=True, slots=True)
 class Span:
-    """A region of the source text: character offsets and the 1-based line and column of its start."""
+    """A region of source text: character offsets, and the 1-based line and column of its start."""
 
     start: int
     end: int
@@ -29,7 +29,8 @@ NO_SPAN = Span(0, 0, 0, 0)
 
 
 def _span() -> Span:
-    return field(default=NO_SPAN, compare=False, hash=False, repr=False)  # type: ignore[no-any-return]
+    span: Span = field(default=NO_SPAN, compare=False, hash=False, repr=False)
+    return span
 
 
 @dataclass(frozen=True, slots=True)

@@ -16,9 +16,7 @@ from lark import Token
 from mitlc.errors import SourceLocation, SpecSyntaxError, locate
 from mitlc.syntax.grammar import lalr_parser
 
-_FORMULA_START = frozenset(
-    {"TRUE", "FALSE", "ATOM", "LPAR", "NOT", "NEXT", "EVENTUALLY", "ALWAYS"}
-)
+_FORMULA_START = frozenset({"TRUE", "FALSE", "ATOM", "LPAR", "NOT", "NEXT", "EVENTUALLY", "ALWAYS"})
 _BINARY = frozenset({"AND", "OR", "IMPLIES", "IFF", "UNTIL", "RELEASE"})
 _BOUND = frozenset({"INT", "INF"})
 
@@ -88,14 +86,15 @@ def _unexpected_character(
     err: lark.exceptions.UnexpectedCharacters, text: str, filename: str
 ) -> SpecSyntaxError:
     char = err.char
-    location = locate(text, err.pos_in_stream, filename)
+    position = err.pos_in_stream or 0
+    location = locate(text, position, filename)
     if char.isalpha() and char.isupper():
         hint = (
             f"'{char}' is not an operator (X, F, G, U, R); propositions start with a "
             "lowercase letter"
         )
         return SpecSyntaxError(f"unexpected character '{char}': {hint}", location)
-    allowed = describe_expected(_accepted_after(text[: err.pos_in_stream], err.allowed or ()))
+    allowed = describe_expected(_accepted_after(text[:position], err.allowed or ()))
     return SpecSyntaxError(f"unexpected character '{char}'; expected {allowed}", location)
 
 
@@ -105,9 +104,14 @@ def _accepted_after(prefix: str, fallback: Iterable[str]) -> set[str]:
     try:
         parser = lalr_parser().parse_interactive(prefix)
         parser.exhaust_lexer()
-        return set(parser.accepts())
+        return _accepts(parser)
     except lark.exceptions.LarkError:
         return set(fallback)
+
+
+def _accepts(parser: lark.parsers.lalr_interactive_parser.InteractiveParser) -> set[str]:
+    accepted: set[str] = parser.accepts()  # type: ignore[no-untyped-call]
+    return set(accepted)
 
 
 def _unexpected_token(
@@ -158,7 +162,7 @@ def _accepted(err: lark.exceptions.UnexpectedToken) -> set[str]:
     if parser is None:
         return set(err.expected)
     try:
-        return set(parser.accepts())
+        return _accepts(parser)
     except lark.exceptions.LarkError:  # pragma: no cover - defensive
         return set(err.expected)
 

@@ -151,9 +151,7 @@ def _span(meta: Any) -> ast.Span:
 
 
 def _token_span(token: Token) -> ast.Span:
-    return ast.Span(
-        _offset(token), token.end_pos or 0, token.line or 0, token.column or 0
-    )
+    return ast.Span(_offset(token), token.end_pos or 0, token.line or 0, token.column or 0)
 
 
 @v_args(meta=True)

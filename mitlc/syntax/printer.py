@@ -65,8 +65,11 @@ def _print_bare(formula: ast.Formula) -> str:
             level, op, _ = _BINARY[type(formula)]
             left_text, right_text = _print(left, level + 1), _print(right, level)
             return f"{left_text} {op}{interval_text(interval)} {right_text}"
-        case ast.And(left, right) | ast.Or(left, right) | ast.Implies(left, right) | ast.Iff(
-            left, right
+        case (
+            ast.And(left, right)
+            | ast.Or(left, right)
+            | ast.Implies(left, right)
+            | ast.Iff(left, right)
         ):
             level, op, right_assoc = _BINARY[type(formula)]
             # Beside a Boolean connective an until or release is parenthesised, as Spot does:

@@ -38,8 +38,11 @@ def ast_to_data(formula: ast.Formula) -> dict[str, Any]:
         case ast.Until(interval, left, right) | ast.Release(interval, left, right):
             data["interval"] = [interval.lo, interval.hi]
             data["left"], data["right"] = ast_to_data(left), ast_to_data(right)
-        case ast.And(left, right) | ast.Or(left, right) | ast.Implies(left, right) | ast.Iff(
-            left, right
+        case (
+            ast.And(left, right)
+            | ast.Or(left, right)
+            | ast.Implies(left, right)
+            | ast.Iff(left, right)
         ):
             data["left"], data["right"] = ast_to_data(left), ast_to_data(right)
     span = formula.span

@@ -13,8 +13,11 @@ def node_label(formula: ast.Formula) -> str:
             head = f"Bool {'true' if value else 'false'}"
         case ast.Atom(name):
             head = f"Atom {name}"
-        case ast.Eventually(interval) | ast.Always(interval) | ast.Until(interval) | ast.Release(
-            interval
+        case (
+            ast.Eventually(interval)
+            | ast.Always(interval)
+            | ast.Until(interval)
+            | ast.Release(interval)
         ):
             head = f"{type(formula).__name__} {interval_text(interval) or '[0,inf)'}"
         case _:
