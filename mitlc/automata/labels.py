@@ -1,0 +1,203 @@
+"""Boolean labels for sets of letters: two-level minimisation into a sum of cubes.
+
+A letter is an integer whose bit ``i`` says whether proposition ``i`` holds (as in
+:mod:`mitlc.automata.digital`). A :class:`Cube` is a conjunction of literals: the propositions
+in ``care`` are fixed to their bit in ``value``, the others are free. :func:`minimal_cover`
+turns a set of letters into a short disjunction of cubes whose letters are exactly that set:
+the prime implicants by Quine–McCluskey, the essential ones first, then the fewest further
+primes (an exact branch and bound for small problems, greedy beyond a node budget).
+
+Everything is deterministic and the cubes come out in a canonical order, so a label is the same
+text on every run. :func:`label_text` writes a cover in mitlc's spec syntax (``a & !b | c``) or
+with HOA's proposition indices (``0&!1 | 2``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Literal, NamedTuple
+
+MAX_EXACT_PROPS = 12
+"""Beyond this many propositions the cover is one cube per letter (correct, not minimal)."""
+
+_SEARCH_BUDGET = 2_000
+"""Nodes the exact cover search may visit before it settles for the best cover found."""
+
+
+class Cube(NamedTuple):
+    """The conjunction that fixes each proposition of ``care`` to its bit in ``value``."""
+
+    care: int
+    value: int
+
+    def contains(self, letter: int) -> bool:
+        """True when ``letter`` satisfies the cube."""
+        return letter & self.care == self.value
+
+    def letters(self, num_props: int) -> list[int]:
+        """The letters over ``num_props`` propositions that satisfy the cube, ascending."""
+        return [m for m in range(1 << num_props) if m & self.care == self.value]
+
+    @property
+    def num_literals(self) -> int:
+        """How many propositions the cube fixes."""
+        return self.care.bit_count()
+
+
+def cube_key(cube: Cube, num_props: int) -> tuple[int, ...]:
+    """The canonical sort key: per proposition, 0 positive, 1 negative, 2 free (truth-table
+    order, so ``a & !b`` comes before ``c``)."""
+    return tuple(
+        (0 if cube.value >> i & 1 else 1) if cube.care >> i & 1 else 2 for i in range(num_props)
+    )
+
+
+def prime_implicants(letters: Iterable[int], num_props: int) -> list[Cube]:
+    """The prime implicants of the letter set (Quine–McCluskey), in canonical order."""
+    full = (1 << num_props) - 1
+    level = {Cube(full, m) for m in letters}
+    primes: set[Cube] = set()
+    while level:
+        merged: set[Cube] = set()
+        used: set[Cube] = set()
+        for cube in level:
+            care = cube.care
+            while care:
+                bit = care & -care
+                care ^= bit
+                partner = Cube(cube.care, cube.value ^ bit)
+                if partner in level:
+                    used.add(cube)
+                    used.add(partner)
+                    merged.add(Cube(cube.care & ~bit, cube.value & ~bit))
+        primes |= level - used
+        level = merged
+    return sorted(primes, key=lambda c: cube_key(c, num_props))
+
+
+def minimal_cover(letters: Iterable[int], num_props: int) -> list[Cube]:
+    """Cubes whose letters are exactly ``letters``, few of them, in canonical order.
+
+    The empty set gives ``[]`` (false), the full set ``[Cube(0, 0)]`` (true). Up to
+    :data:`MAX_EXACT_PROPS` propositions the cover is made of prime implicants: minimum in the
+    number of cubes (then of literals) when the search fits its budget, greedy otherwise.
+    """
+    wanted = sorted(set(letters))
+    full = (1 << num_props) - 1
+    if any(m < 0 or m > full for m in wanted):
+        raise ValueError(f"a letter is out of range for {num_props} propositions")
+    if not wanted:
+        return []
+    if len(wanted) == 1 << num_props:
+        return [Cube(0, 0)]
+    if num_props > MAX_EXACT_PROPS:
+        return [Cube(full, m) for m in wanted]
+    primes = prime_implicants(wanted, num_props)
+    masks = [_mask(prime, num_props) for prime in primes]
+    covering: dict[int, list[int]] = {m: [] for m in wanted}
+    for index, mask in enumerate(masks):
+        for m in _bits(mask):
+            covering[m].append(index)
+    chosen = {options[0] for options in covering.values() if len(options) == 1}
+    left = sum(1 << m for m in wanted)
+    for index in chosen:
+        left &= ~masks[index]
+    cover = [primes[i] for i in chosen | set(_cover_rest(left, primes, masks, covering))]
+    return sorted(cover, key=lambda c: cube_key(c, num_props))
+
+
+def _mask(cube: Cube, num_props: int) -> int:
+    """The letters of ``cube`` as a bit set (bit ``m`` for letter ``m``)."""
+    return sum(1 << m for m in cube.letters(num_props))
+
+
+def _bits(mask: int) -> list[int]:
+    """The positions of the set bits of ``mask``, ascending."""
+    out = []
+    while mask:
+        low = mask & -mask
+        out.append(low.bit_length() - 1)
+        mask ^= low
+    return out
+
+
+def _cover_rest(
+    left: int, primes: Sequence[Cube], masks: Sequence[int], covering: dict[int, list[int]]
+) -> list[int]:
+    """Few primes that cover the letter bit set ``left``: greedy, then branch and bound."""
+    best = _greedy(left, primes, masks, covering)
+    if not left:
+        return best
+
+    def cost(indices: Sequence[int]) -> tuple[int, int]:
+        return len(indices), sum(primes[i].num_literals for i in indices)
+
+    best_cost = cost(best)
+    visited = 0
+
+    def search(rest: int, picked: list[int]) -> None:
+        nonlocal best, best_cost, visited
+        visited += 1
+        if visited > _SEARCH_BUDGET:
+            return
+        if not rest:
+            if cost(picked) < best_cost:
+                best, best_cost = list(picked), cost(picked)
+            return
+        if len(picked) + 1 > best_cost[0]:
+            return
+        # Branch on the letter with the fewest covering primes.
+        pivot = min(_bits(rest), key=lambda m: len(covering[m]))
+        for index in covering[pivot]:
+            picked.append(index)
+            search(rest & ~masks[index], picked)
+            picked.pop()
+
+    search(left, [])
+    return best
+
+
+def _greedy(
+    left: int, primes: Sequence[Cube], masks: Sequence[int], covering: dict[int, list[int]]
+) -> list[int]:
+    """Repeatedly the prime covering the most letters of ``left`` (fewest literals, then first)."""
+    picked: list[int] = []
+    while left:
+        candidates = sorted({i for m in _bits(left) for i in covering[m]})
+        index = max(
+            candidates,
+            key=lambda i: ((masks[i] & left).bit_count(), -primes[i].num_literals, -i),
+        )
+        picked.append(index)
+        left &= ~masks[index]
+    return picked
+
+
+def cube_text(
+    cube: Cube, propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
+) -> str:
+    """One cube: ``a & !b`` (spec) or ``0&!1`` (hoa); the empty cube is ``true`` / ``t``."""
+    literals = []
+    for i, name in enumerate(propositions):
+        if cube.care >> i & 1:
+            atom = name if style == "spec" else str(i)
+            literals.append(atom if cube.value >> i & 1 else "!" + atom)
+    if not literals:
+        return "true" if style == "spec" else "t"
+    return (" & " if style == "spec" else "&").join(literals)
+
+
+def label_text(
+    letters: Iterable[int], propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
+) -> str:
+    """The minimal-cover label of a letter set over ``propositions``.
+
+    ``spec``: mitlc's syntax (``a & !b | c``, ``true``, ``false``), which :func:`mitlc.syntax.parse`
+    reads back. ``hoa``: HOA's label syntax with proposition indices (``0&!1 | 2``, ``t``, ``f``).
+    """
+    if style not in ("spec", "hoa"):
+        raise ValueError(f"unknown label style {style!r}")
+    cover = minimal_cover(letters, len(propositions))
+    if not cover:
+        return "false" if style == "spec" else "f"
+    return " | ".join(cube_text(cube, propositions, style) for cube in cover)

@@ -1,0 +1,226 @@
+"""MITL to a digital limit-deterministic generalized Büchi automaton: ``translate(formula)``.
+
+The construction is that of Esparza, Křetínský and Sickert (EKS20: "A unified translation of
+linear temporal logic to ω-automata", JACM 67(6), 2020; first as SEJK16: Sickert, Esparza, Jaax,
+Křetínský, "Limit-deterministic Büchi automata for linear temporal logic", CAV 2016), on the
+discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in finite time.
+
+* The *initial component* is the progression automaton: its states are the obligations still
+  owed (:mod:`mitlc.automata.progress`), deterministic and complete.
+* By the Master Theorem (EKS20, Thm. 5.7), a word satisfies φ iff for some set ``X`` of its
+  unbounded F/U subformulas and ``Y`` of its unbounded G/R subformulas: (1) from some position
+  ``i`` on the residual obligation ``ψ`` satisfies ``ψ[X]ν``; (2) each ``χ ∈ X`` satisfies
+  ``G F χ[Y]μ``; (3) each ``χ ∈ Y`` satisfies ``F G χ[X]ν``. An epsilon jump guesses ``i``,
+  ``X`` and ``Y``; the *accepting component* checks the safety formula ``ψ[X]ν & G χ[X]ν``
+  (``χ ∈ Y``) by progression and each ``G F χ[Y]μ`` with a breakpoint: a disjunction of tokens,
+  one started at every position, whose progression reaching ``true`` marks acceptance set ``χ``
+  and restarts empty (:mod:`mitlc.automata.accepting`).
+* A formula without unbounded F/U is a safety formula: the progression automaton alone with zero
+  acceptance sets. One without unbounded G/R is a co-safety formula: the progression automaton
+  with one set, on ``true``. Both are deterministic; only the rest get epsilon jumps.
+* States with no accepting continuation merge into one rejecting sink; ``true`` is the
+  accepting sink; states are numbered in breadth-first order, so output is canonical.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TypeAlias
+
+from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
+from mitlc.automata.digital import Component, DigitalAutomaton, DigitalState
+from mitlc.automata.graph import live_states
+from mitlc.automata.normalize import normalize
+from mitlc.automata.progress import Progression
+from mitlc.automata.terms import TermStore
+from mitlc.automata.text import form_text
+from mitlc.errors import MitlcError
+from mitlc.syntax import ast, to_text
+
+MAX_PROPOSITIONS = 16
+
+Key: TypeAlias = tuple[object, ...]
+SINK: Key = ("sink",)
+TRUE: Key = ("true",)
+
+
+class TranslationError(MitlcError):
+    """A formula the translation refuses: too many propositions or states."""
+
+
+@dataclass(slots=True)
+class _Explored:
+    """The states found so far and their transitions, in discovery order."""
+
+    keys: list[Key] = field(default_factory=list)
+    index: dict[Key, int] = field(default_factory=dict)
+    delta: list[list[int]] = field(default_factory=list)
+    marks: list[list[int]] = field(default_factory=list)
+    epsilon: list[tuple[int, int]] = field(default_factory=list)
+
+    def id(self, key: Key, limit: int) -> int:
+        found = self.index.get(key)
+        if found is None:
+            if len(self.keys) >= limit:
+                raise TranslationError(
+                    f"the automaton grows past --max-states {limit}; raise the limit or "
+                    "simplify the formula (smaller bounds, fewer nested operators)"
+                )
+            found = len(self.keys)
+            self.keys.append(key)
+            self.index[key] = found
+        return found
+
+
+def translate(formula: ast.Formula, *, max_states: int = 1_000_000) -> DigitalAutomaton:
+    """The digital LDGBA of ``formula`` (see the module docstring)."""
+    propositions = ast.atoms(formula)
+    if len(propositions) > MAX_PROPOSITIONS:
+        raise TranslationError(
+            f"{len(propositions)} propositions; the explicit letter table allows at most "
+            f"{MAX_PROPOSITIONS}"
+        )
+    store = TermStore(propositions)
+    root = normalize(formula, store)
+    mu, nu = unbounded_atoms(store, root)
+    num_sets = 0 if not mu else 1 if not nu else len(mu)
+    builder = _Builder(store, Progression(store), mu if nu else (), nu, num_sets, max_states)
+    explored = builder.explore(root)
+    return builder.finish(explored, to_text(formula), formula)
+
+
+@dataclass(slots=True)
+class _Builder:
+    store: TermStore
+    progression: Progression
+    mu: tuple[int, ...]
+    nu: tuple[int, ...]
+    num_sets: int
+    max_states: int
+    substitution: Substitution = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.substitution = Substitution(self.store)
+
+    @property
+    def letters(self) -> range:
+        return range(1 << len(self.store.propositions))
+
+    def explore(self, root: int) -> _Explored:
+        """Breadth-first exploration from the initial obligation, jumps included."""
+        explored = _Explored()
+        start: Key = ("initial", root)
+        if root == self.store.true:
+            start = TRUE
+        elif root == self.store.false:
+            start = SINK
+        explored.id(start, self.max_states)
+        position = 0
+        while position < len(explored.keys):
+            key = explored.keys[position]
+            row = [self._successor(key, letter) for letter in self.letters]
+            explored.delta.append([explored.id(k, self.max_states) for k, _ in row])
+            explored.marks.append([m for _, m in row])
+            if key[0] == "initial" and self.mu:
+                for guess in guesses(self.substitution, int(key[1]), self.mu, self.nu):  # type: ignore[call-overload]
+                    target = explored.id(("accepting", *guess.state()), self.max_states)
+                    explored.epsilon.append((position, target))
+            position += 1
+        return explored
+
+    def _successor(self, key: Key, letter: int) -> tuple[Key, int]:
+        store, all_sets = self.store, (1 << self.num_sets) - 1
+        if key == SINK:
+            return SINK, 0
+        if key == TRUE:
+            return TRUE, all_sets
+        if key[0] == "initial":
+            after = self.progression.step(key[1], letter)  # type: ignore[arg-type]
+            if after == store.false:
+                return SINK, 0
+            if after == store.true:
+                return TRUE, 0
+            return ("initial", after), 0
+        guess = Guess.from_state(key[1:])
+        moved = guess.step(self.progression, letter, self.num_sets)
+        if moved is None:
+            return SINK, 0
+        next_guess, marks = moved
+        return ("accepting", *next_guess.state()), marks
+
+    def finish(
+        self, explored: _Explored, formula_text: str, formula: ast.Formula
+    ) -> DigitalAutomaton:
+        """Merge dead states into the sink, renumber breadth-first, attach the obligations."""
+        keys = explored.keys
+        sink_ids = {i for i, k in enumerate(keys) if k == SINK}
+        live = live_states(explored.delta, explored.marks, explored.epsilon, self.num_sets,
+                           sink_ids)
+        order = _bfs_order(explored, live)
+        new_id = {old: new for new, old in enumerate(order)}
+        sink: int | None = None
+        if len(order) < len(keys) or not live:
+            sink = len(order)
+
+        def target(old: int) -> int:
+            mapped = new_id.get(old)
+            if mapped is None or old not in live:
+                assert sink is not None
+                return sink
+            return mapped
+
+        delta = [tuple(target(t) for t in explored.delta[old]) for old in order]
+        marks = [tuple(explored.marks[old]) if old in live else tuple(0 for _ in self.letters)
+                 for old in order]
+        states = [self._state(keys[old]) for old in order]
+        if sink is not None:
+            delta.append(tuple(sink for _ in self.letters))
+            marks.append(tuple(0 for _ in self.letters))
+            states.append(DigitalState("false", "initial", "violated"))
+        epsilon = sorted(
+            (new_id[s], new_id[t]) for s, t in explored.epsilon if s in live and t in live
+        )
+        initial = 0 if 0 in live else (sink if sink is not None else 0)
+        return DigitalAutomaton(
+            source=formula_text,
+            formula=formula_text,
+            propositions=self.store.propositions,
+            states=tuple(states),
+            initial=initial,
+            delta=tuple(delta),
+            marks=tuple(marks),
+            num_sets=self.num_sets,
+            epsilon=tuple(epsilon),
+        )
+
+    def _state(self, key: Key) -> DigitalState:
+        if key == SINK:
+            return DigitalState("false", "initial", "violated")
+        if key == TRUE:
+            return DigitalState("true", "initial", "satisfied")
+        component: Component = "initial" if key[0] == "initial" else "accepting"
+        if component == "initial":
+            text = form_text(self.store, key[1])  # type: ignore[arg-type]
+            return DigitalState(text, component, "pending")
+        guess = Guess.from_state(key[1:])
+        verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
+        return DigitalState(guess.text(self.store), component, verdict)
+
+
+def _bfs_order(explored: _Explored, live: set[int]) -> list[int]:
+    """Live states in breadth-first order from the initial state: letters, then jumps."""
+    if 0 not in live:
+        return []
+    jumps: dict[int, list[int]] = {}
+    for s, t in explored.epsilon:
+        jumps.setdefault(s, []).append(t)
+    order, seen = [0], {0}
+    position = 0
+    while position < len(order):
+        state = order[position]
+        for t in [*explored.delta[state], *jumps.get(state, ())]:
+            if t in live and t not in seen:
+                seen.add(t)
+                order.append(t)
+        position += 1
+    return order

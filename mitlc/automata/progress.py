@@ -1,0 +1,103 @@
+"""Formula progression, the "after" function: what must hold from the next position on.
+
+``step(form, letter)`` is the formula that the rest of the word must satisfy after ``letter``
+has been read at the current position (Bacchus and Kabanza's progression; the ``af`` function
+of Esparza, Křetínský and Sickert, JACM 2020), with bounded intervals shifted by one step:
+
+* ``F[lo,hi] p``: ``lo > 0`` gives ``F[lo-1,hi-1] p``; ``lo = 0`` gives ``p' | F[0,hi-1] p``;
+* ``G[lo,hi] p``: ``lo > 0`` gives ``G[lo-1,hi-1] p``; ``lo = 0`` gives ``p' & G[0,hi-1] p``;
+* ``p U[lo,hi] q``: ``lo > 0`` gives ``p' & p U[lo-1,hi-1] q``; ``lo = 0`` gives
+  ``q' | p' & p U[0,hi-1] q``;
+* ``p R[lo,hi] q``: the dual, ``p' | p R[lo-1,hi-1] q`` and ``q' & (p' | p R[0,hi-1] q)``;
+
+where ``p'`` is the progression of ``p`` and an interval ending below 0 contributes ``false``
+(for ``F``, ``U``) or ``true`` (for ``G``, ``R``); unbounded intervals stay ``[0, inf)``.
+"""
+
+from __future__ import annotations
+
+from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, UNTIL, TermStore
+
+
+class Progression:
+    """Memoised progression over one term store."""
+
+    def __init__(self, store: TermStore) -> None:
+        self.store = store
+        self._form_cache: dict[tuple[int, int], int] = {}
+        self._atom_cache: dict[tuple[int, int], int] = {}
+        self._reads: dict[int, int] = {}
+
+    def step(self, form: int, letter: int) -> int:
+        """The progression of ``form`` through ``letter`` (bit ``i``: proposition ``i`` holds)."""
+        letter &= self.reads(form)
+        key = (form, letter)
+        found = self._form_cache.get(key)
+        if found is None:
+            store = self.store
+            found = store.false
+            for cube in store.forms[form]:
+                conjunction = store.true
+                for atom in cube:
+                    conjunction = store.and_(conjunction, self._atom_step(atom, letter))
+                    if conjunction == store.false:
+                        break
+                found = store.or_(found, conjunction)
+                if found == store.true:
+                    break
+            self._form_cache[key] = found
+        return found
+
+    def reads(self, form: int) -> int:
+        """The mask of the propositions whose value now can change the progression of ``form``."""
+        found = self._reads.get(form)
+        if found is None:
+            found = 0
+            for cube in self.store.forms[form]:
+                for atom in cube:
+                    found |= self._atom_reads(atom)
+            self._reads[form] = found
+        return found
+
+    def _atom_reads(self, atom: int) -> int:
+        kind, a, b, left, right = self.store.atoms[atom]
+        if kind == LIT:
+            return 1 << a
+        if a > 0:  # a delayed operator reads nothing now, but an until's left operand
+            return self.reads(left) if kind in (UNTIL, "R") else 0
+        operand_reads = self.reads(left)
+        return operand_reads | self.reads(right) if kind in (UNTIL, "R") else operand_reads
+
+    def _atom_step(self, atom: int, letter: int) -> int:
+        key = (atom, letter)
+        found = self._atom_cache.get(key)
+        if found is None:
+            found = self._compute(atom, letter)
+            self._atom_cache[key] = found
+        return found
+
+    def _compute(self, atom: int, letter: int) -> int:
+        store = self.store
+        kind, lo, hi, left, right = store.atoms[atom]
+        if kind == LIT:
+            return store.true if bool(letter >> lo & 1) == bool(hi) else store.false
+        later_hi = hi if hi == INF else hi - 1
+        if kind in (EVENTUALLY, ALWAYS):
+            if lo > 0:
+                return store.temporal(kind, lo - 1, later_hi, left)
+            now = self.step(left, letter)
+            if kind == EVENTUALLY:
+                rest = store.false if hi == 0 else store.temporal(kind, 0, later_hi, left)
+                return store.or_(now, rest)
+            rest = store.true if hi == 0 else store.temporal(kind, 0, later_hi, left)
+            return store.and_(now, rest)
+        left_now = self.step(left, letter)
+        if kind == UNTIL:
+            if lo > 0:
+                return store.and_(left_now, store.temporal(kind, lo - 1, later_hi, left, right))
+            rest = store.false if hi == 0 else store.temporal(kind, 0, later_hi, left, right)
+            return store.or_(self.step(right, letter), store.and_(left_now, rest))
+        if lo > 0:
+            return store.or_(left_now, store.temporal(kind, lo - 1, later_hi, left, right))
+        rest = store.true if hi == 0 else store.temporal(kind, 0, later_hi, left, right)
+        return store.and_(self.step(right, letter), store.or_(left_now, rest))

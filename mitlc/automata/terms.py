@@ -1,0 +1,235 @@
+"""Hash-consed normal forms of MITL formulas: the states of the digital automaton.
+
+A formula in normal form is a disjunction of cubes, a cube a conjunction of *atoms*, and an atom
+a literal or a temporal operator whose operands are themselves normal forms (DNF all the way
+down). Atoms and forms are interned, so equal formulas have equal integer ids; this is what
+makes the progression of :mod:`mitlc.automata.progress` reach a finite set of states.
+
+Temporal atoms keep the interval of the operator. ``X p`` is ``F[1,1] p``; an operator with an
+interval ``[lo, inf)`` and ``lo > 0`` is rewritten once at normalisation (``F[lo,inf) p`` is
+``F[lo,lo] F p``), so every unbounded operator has the interval ``[0, inf)`` and stays as it is
+under progression: the unbounded atoms of every state are subformulas of the input.
+
+Simplification keeps forms small and canonical enough: contradictory literals empty a cube,
+a cube that contains another is dropped (absorption), and within a cube an atom implied by
+another atom with the same operator and operands is dropped (two pending ``F[0,k] b`` keep the
+tighter one).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TypeAlias
+
+INF = -1
+"""The upper bound of an unbounded interval, in atoms."""
+
+# Atom kinds.
+LIT, EVENTUALLY, ALWAYS, UNTIL, RELEASE = "lit", "F", "G", "U", "R"
+
+Atom: TypeAlias = tuple[str, int, int, int, int]
+"""``(kind, a, b, c, d)``: ``("lit", prop, positive, 0, 0)``, ``("F"|"G", lo, hi, operand, 0)``,
+``("U"|"R", lo, hi, left, right)``; operands are form ids, ``hi == INF`` for unbounded."""
+
+Cube: TypeAlias = frozenset[int]
+Form: TypeAlias = frozenset[Cube]
+
+
+class TermStore:
+    """Interns atoms and forms; builds conjunctions and disjunctions in normal form."""
+
+    def __init__(self, propositions: Iterable[str]) -> None:
+        self.propositions: tuple[str, ...] = tuple(propositions)
+        self.atoms: list[Atom] = []
+        self._atom_ids: dict[Atom, int] = {}
+        self.forms: list[Form] = []
+        self._form_ids: dict[Form, int] = {}
+        self.false = self.form(frozenset())
+        self.true = self.form(frozenset({frozenset()}))
+        self._and_cache: dict[tuple[int, int], int] = {}
+        self._or_cache: dict[tuple[int, int], int] = {}
+
+    # --- interning ------------------------------------------------------------------------------
+
+    def atom(self, atom: Atom) -> int:
+        """The id of ``atom``."""
+        found = self._atom_ids.get(atom)
+        if found is None:
+            found = len(self.atoms)
+            self.atoms.append(atom)
+            self._atom_ids[atom] = found
+        return found
+
+    def form(self, cubes: Form) -> int:
+        """The id of a form given as its set of cubes (assumed already simplified)."""
+        found = self._form_ids.get(cubes)
+        if found is None:
+            found = len(self.forms)
+            self.forms.append(cubes)
+            self._form_ids[cubes] = found
+        return found
+
+    def atom_form(self, atom_id: int) -> int:
+        """The form made of the single atom ``atom_id``."""
+        return self.form(frozenset({frozenset({atom_id})}))
+
+    # --- constructors ---------------------------------------------------------------------------
+
+    def literal(self, prop: int, positive: bool) -> int:
+        """The form of the literal ``p`` or ``!p``."""
+        return self.atom_form(self.atom((LIT, prop, int(positive), 0, 0)))
+
+    def temporal(self, kind: str, lo: int, hi: int, left: int, right: int = 0) -> int:
+        """The form of a temporal operator, with the trivial cases folded away.
+
+        For ``F``/``G`` the operand is ``left``; for ``U``/``R`` the operands are ``left`` and
+        ``right``. ``[0,0]`` is the (right) operand itself; ``true U_I q`` is ``F_I q`` and
+        ``false R_I q`` is ``G_I q``; constants fold; ``F[a,a]`` and ``G[a,a]`` are delays.
+        """
+        if kind == UNTIL and left == self.true:
+            kind, left = EVENTUALLY, right
+        elif kind == RELEASE and left == self.false:
+            kind, left = ALWAYS, right
+        operand = left if kind in (EVENTUALLY, ALWAYS) else right
+        if lo == 0 and hi == 0:
+            return operand
+        if operand in (self.true, self.false):
+            # F_I c = G_I c = c; p U_I false = false; p R_I true = true; and from lo = 0,
+            # p U_I true = true, p R_I false = false.
+            if kind in (EVENTUALLY, ALWAYS) or lo == 0:
+                return operand
+            if (kind == UNTIL) == (operand == self.false):
+                return operand
+        if kind in (EVENTUALLY, ALWAYS):
+            if lo == hi:
+                return self.delay(lo, operand)
+            return self.atom_form(self.atom((kind, lo, hi, operand, 0)))
+        return self.atom_form(self.atom((kind, lo, hi, left, right)))
+
+    def delay(self, steps: int, operand: int) -> int:
+        """``X^steps operand``, written ``F[steps,steps] operand``.
+
+        Delays add up, and a delayed bounded ``F`` or ``G`` shifts its interval:
+        ``X^s F[l,h] p`` is ``F[l+s,h+s] p``. (A delayed until keeps its delay: its left operand
+        must hold from the delayed position on, not from now.)
+        """
+        if steps == 0 or operand in (self.true, self.false):
+            return operand
+        cubes = self.forms[operand]
+        if len(cubes) == 1:
+            (cube,) = cubes
+            if len(cube) == 1:
+                (only,) = cube
+                kind, lo, hi, inner, _ = self.atoms[only]
+                if kind in (EVENTUALLY, ALWAYS) and hi != INF:
+                    return self.atom_form(self.atom((kind, lo + steps, hi + steps, inner, 0)))
+        return self.atom_form(self.atom((EVENTUALLY, steps, steps, operand, 0)))
+
+    # --- Boolean operations ---------------------------------------------------------------------
+
+    def or_(self, f: int, g: int) -> int:
+        """The disjunction of two forms."""
+        if f == g or g == self.false or f == self.true:
+            return f
+        if f == self.false or g == self.true:
+            return g
+        key = (f, g) if f < g else (g, f)
+        found = self._or_cache.get(key)
+        if found is None:
+            found = self.form(self._absorb(self.forms[f] | self.forms[g]))
+            self._or_cache[key] = found
+        return found
+
+    def and_(self, f: int, g: int) -> int:
+        """The conjunction of two forms (the product of their cubes)."""
+        if f == g or g == self.true or f == self.false:
+            return f
+        if f == self.true or g == self.false:
+            return g
+        key = (f, g) if f < g else (g, f)
+        found = self._and_cache.get(key)
+        if found is None:
+            cubes = set()
+            for left in self.forms[f]:
+                for right in self.forms[g]:
+                    cube = self._cube(left | right)
+                    if cube is not None:
+                        cubes.add(cube)
+            found = self.form(self._absorb(cubes))
+            self._and_cache[key] = found
+        return found
+
+    def all_of(self, forms: Iterable[int]) -> int:
+        """The conjunction of several forms."""
+        result = self.true
+        for f in forms:
+            result = self.and_(result, f)
+        return result
+
+    def any_of(self, forms: Iterable[int]) -> int:
+        """The disjunction of several forms."""
+        result = self.false
+        for f in forms:
+            result = self.or_(result, f)
+        return result
+
+    # --- simplification -------------------------------------------------------------------------
+
+    def _cube(self, atoms: frozenset[int]) -> Cube | None:
+        """Simplify a conjunction of atoms: ``None`` if it is contradictory."""
+        kept = set(atoms)
+        for a in atoms:
+            kind, x, y, _, _ = self.atoms[a]
+            if kind == LIT and self._atom_ids.get((LIT, x, 1 - y, 0, 0)) in atoms:
+                return None
+        for a in atoms:
+            for b in atoms:
+                if a != b and a in kept and b in kept and self.implies(a, b):
+                    kept.discard(b)
+        return frozenset(kept)
+
+    def implies(self, a: int, b: int) -> bool:
+        """Syntactic implication between two atoms with the same operator and operands."""
+        ka, la, ha, xa, ya = self.atoms[a]
+        kb, lb, hb, xb, yb = self.atoms[b]
+        if ka != kb or xa != xb or ya != yb or ka == LIT:
+            return False
+        inside = _within((la, ha), (lb, hb))  # [la,ha] within [lb,hb]
+        if ka == EVENTUALLY:
+            return inside
+        if ka == ALWAYS or ka == RELEASE:
+            return _within((lb, hb), (la, ha))
+        # until: a witness in [la,ha] is one in [lb,hb] when lb <= la and ha <= hb
+        return inside
+
+    @staticmethod
+    def _absorb(cubes: Iterable[Cube]) -> Form:
+        """Drop every cube that contains another cube (``x | x & y`` is ``x``)."""
+        ordered = sorted(set(cubes), key=len)
+        kept: list[Cube] = []
+        for cube in ordered:
+            if not any(small <= cube for small in kept):
+                kept.append(cube)
+        return frozenset(kept)
+
+
+def _within(inner: tuple[int, int], outer: tuple[int, int]) -> bool:
+    """``[inner] ⊆ [outer]`` for intervals whose upper bound may be ``INF``."""
+    (li, hi_), (lo, ho) = inner, outer
+    if li < lo:
+        return False
+    if ho == INF:
+        return True
+    return hi_ != INF and hi_ <= ho
+
+
+@dataclass(frozen=True, slots=True)
+class Letter:
+    """A letter as the set of indices of the true propositions (bit i for proposition i)."""
+
+    bits: int
+
+    def holds(self, prop: int) -> bool:
+        """Whether proposition ``prop`` is true in this letter."""
+        return bool(self.bits >> prop & 1)
