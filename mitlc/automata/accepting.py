@@ -132,16 +132,6 @@ class Guess:
     tokens: tuple[tuple[int, int, int], ...]
     """``(k, seed, pending)`` for each ``χ_k ∈ X``, by increasing ``k``."""
 
-    def state(self) -> tuple[object, ...]:
-        """The hashable key of this state."""
-        return (self.safety, self.tokens)
-
-    @staticmethod
-    def from_state(key: tuple[object, ...]) -> Guess:
-        """The inverse of :meth:`state`."""
-        safety, tokens = key
-        return Guess(safety, tokens)  # type: ignore[arg-type]
-
     def step(
         self, progression: Progression, letter: int, num_sets: int
     ) -> tuple[Guess, int] | None:
@@ -196,6 +186,8 @@ def guesses(
             seeds = [(index[chi], substitution.mu(store.atom_form(chi), ys)) for chi in sorted(xs)]
             if any(seed == store.false for _, seed in seeds):
                 continue
+            # A recurrence `G F true` holds on every step: like a set outside X, always marked.
+            seeds = [(k, seed) for k, seed in seeds if seed != store.true]
             guess = Guess(safety, tuple((k, seed, store.false) for k, seed in sorted(seeds)))
             if guess not in produced:
                 produced.add(guess)

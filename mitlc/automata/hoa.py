@@ -3,7 +3,8 @@
 :func:`to_hoa` writes a :class:`~mitlc.automata.digital.DigitalAutomaton` as HOA text that Spot
 (``spot.automaton``) and the other HOA tools read, with the same language:
 
-* transition-based generalized Büchi acceptance, ``Acceptance: n Inf(0)&...&Inf(n-1)``;
+* transition-based generalized Büchi acceptance, ``Acceptance: n Inf(0)&...&Inf(n-1)``
+  (``acc-name: generalized-Buchi n``, or ``Buchi`` for one set);
 * HOA has no epsilon: a jump ``s -> t`` becomes, for every letter, an edge from ``s`` to
   ``delta[t][letter]`` with the marks ``marks[t][letter]`` (jumps are closed transitively);
 * with zero acceptance sets the acceptance is ``t``, under which every infinite run accepts, so
@@ -179,10 +180,14 @@ def to_hoa(automaton: DigitalAutomaton, name: str | None = None) -> str:
         lines.append("acc-name: Buchi" if n == 1 else f"acc-name: generalized-Buchi {n}")
         lines.append(f"Acceptance: {n} " + "&".join(f"Inf({k})" for k in range(n)))
     lines += ["properties: " + " ".join(props), "--BODY--"]
+    labels: dict[frozenset[int], str] = {}  # many edges share a letter set
     for s, out in enumerate(edges):
         lines.append(f"State: {s}")
         for target, marks in sorted(out):
-            label = label_text(out[(target, marks)], automaton.propositions, "hoa")
+            letters = frozenset(out[(target, marks)])
+            if letters not in labels:
+                labels[letters] = label_text(letters, automaton.propositions, "hoa")
+            label = labels[letters]
             sets = [str(k) for k in range(n) if marks >> k & 1]
             acc = " {" + " ".join(sets) + "}" if sets else ""
             lines.append(f"[{label}] {target}{acc}")

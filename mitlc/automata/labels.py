@@ -17,8 +17,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from typing import Literal, NamedTuple
 
-MAX_EXACT_PROPS = 12
-"""Beyond this many propositions the cover is one cube per letter (correct, not minimal)."""
+MAX_EXACT_PROPS = 10
+"""Beyond this many propositions the cover comes from a cheap Shannon split (exact, not minimal):
+Quine–McCluskey's prime implicants grow too many to enumerate."""
 
 _SEARCH_BUDGET = 2_000
 """Nodes the exact cover search may visit before it settles for the best cover found."""
@@ -36,7 +37,13 @@ class Cube(NamedTuple):
 
     def letters(self, num_props: int) -> list[int]:
         """The letters over ``num_props`` propositions that satisfy the cube, ascending."""
-        return [m for m in range(1 << num_props) if m & self.care == self.value]
+        free = ((1 << num_props) - 1) & ~self.care
+        out, sub = [], free
+        while True:  # every subset of the free propositions, largest first
+            out.append(self.value | sub)
+            if not sub:
+                return out[::-1]
+            sub = (sub - 1) & free
 
     @property
     def num_literals(self) -> int:
@@ -80,7 +87,8 @@ def minimal_cover(letters: Iterable[int], num_props: int) -> list[Cube]:
 
     The empty set gives ``[]`` (false), the full set ``[Cube(0, 0)]`` (true). Up to
     :data:`MAX_EXACT_PROPS` propositions the cover is made of prime implicants: minimum in the
-    number of cubes (then of literals) when the search fits its budget, greedy otherwise.
+    number of cubes (then of literals) when the search fits its budget, greedy otherwise;
+    beyond, a Shannon split gives an exact but not necessarily minimal cover.
     """
     wanted = sorted(set(letters))
     full = (1 << num_props) - 1
@@ -91,7 +99,7 @@ def minimal_cover(letters: Iterable[int], num_props: int) -> list[Cube]:
     if len(wanted) == 1 << num_props:
         return [Cube(0, 0)]
     if num_props > MAX_EXACT_PROPS:
-        return [Cube(full, m) for m in wanted]
+        return sorted(_split_cover(set(wanted), num_props), key=lambda c: cube_key(c, num_props))
     primes = prime_implicants(wanted, num_props)
     masks = [_mask(prime, num_props) for prime in primes]
     covering: dict[int, list[int]] = {m: [] for m in wanted}
@@ -104,6 +112,24 @@ def minimal_cover(letters: Iterable[int], num_props: int) -> list[Cube]:
         left &= ~masks[index]
     cover = [primes[i] for i in chosen | set(_cover_rest(left, primes, masks, covering))]
     return sorted(cover, key=lambda c: cube_key(c, num_props))
+
+
+def _split_cover(letters: set[int], k: int) -> list[Cube]:
+    """Cubes whose letters over the low ``k`` propositions are exactly ``letters``: split on the
+    highest proposition, keep what both halves share free of it, recurse."""
+    if not letters:
+        return []
+    if len(letters) == 1 << k:
+        return [Cube(0, 0)]
+    bit = 1 << (k - 1)
+    low = {m for m in letters if not m & bit}
+    high = {m ^ bit for m in letters if m & bit}
+    both = low & high
+    return (
+        [Cube(c.care | bit, c.value) for c in _split_cover(low - both, k - 1)]
+        + [Cube(c.care | bit, c.value | bit) for c in _split_cover(high - both, k - 1)]
+        + _split_cover(both, k - 1)
+    )
 
 
 def _mask(cube: Cube, num_props: int) -> int:

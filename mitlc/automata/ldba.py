@@ -25,10 +25,10 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TypeAlias
+from typing import Literal, TypeAlias
 
 from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
-from mitlc.automata.digital import Component, DigitalAutomaton, DigitalState
+from mitlc.automata.digital import DigitalAutomaton, DigitalState, Verdict
 from mitlc.automata.graph import live_states
 from mitlc.automata.normalize import normalize
 from mitlc.automata.progress import Progression
@@ -39,9 +39,38 @@ from mitlc.syntax import ast, to_text
 
 MAX_PROPOSITIONS = 16
 
-Key: TypeAlias = tuple[object, ...]
-SINK: Key = ("sink",)
-TRUE: Key = ("true",)
+StateKind: TypeAlias = Literal["initial", "accepting", "sink", "true"]
+
+
+@dataclass(frozen=True, slots=True)
+class Key:
+    """What a digital state stands for: its kind and its normal forms.
+
+    ``initial``: ``forms == (obligation,)``. ``accepting``: ``forms == (safety, pending...)``
+    with one pending token per ``(k, seed)`` in ``seeds``. ``sink`` and ``true``: no forms.
+    """
+
+    kind: StateKind
+    forms: tuple[int, ...] = ()
+    seeds: tuple[tuple[int, int], ...] = ()
+
+    @staticmethod
+    def of_guess(guess: Guess) -> Key:
+        """The key of an accepting state."""
+        pending = tuple(p for _, _, p in guess.tokens)
+        seeds = tuple((k, seed) for k, seed, _ in guess.tokens)
+        return Key("accepting", (guess.safety, *pending), seeds)
+
+    def guess(self) -> Guess:
+        """The accepting state this key stands for."""
+        tokens = tuple(
+            (k, seed, p) for (k, seed), p in zip(self.seeds, self.forms[1:], strict=True)
+        )
+        return Guess(self.forms[0], tokens)
+
+
+SINK = Key("sink")
+TRUE = Key("true")
 
 
 class TranslationError(MitlcError):
@@ -72,8 +101,23 @@ class _Explored:
         return found
 
 
+@dataclass(frozen=True, slots=True)
+class Translation:
+    """The digital automaton with the normal forms behind its states, for folding."""
+
+    automaton: DigitalAutomaton
+    store: TermStore
+    keys: tuple[Key, ...]
+    """``keys[s]``: the normal forms behind digital state ``s``."""
+
+
 def translate(formula: ast.Formula, *, max_states: int = 1_000_000) -> DigitalAutomaton:
     """The digital LDGBA of ``formula`` (see the module docstring)."""
+    return translate_terms(formula, max_states=max_states).automaton
+
+
+def translate_terms(formula: ast.Formula, *, max_states: int = 1_000_000) -> Translation:
+    """:func:`translate`, keeping the term store and each state's normal form."""
     propositions = ast.atoms(formula)
     if len(propositions) > MAX_PROPOSITIONS:
         raise TranslationError(
@@ -86,7 +130,7 @@ def translate(formula: ast.Formula, *, max_states: int = 1_000_000) -> DigitalAu
     num_sets = 0 if not mu else 1 if not nu else len(mu)
     builder = _Builder(store, Progression(store), mu if nu else (), nu, num_sets, max_states)
     explored = builder.explore(root)
-    return builder.finish(explored, to_text(formula), formula)
+    return builder.finish(explored, to_text(formula))
 
 
 @dataclass(slots=True)
@@ -109,7 +153,7 @@ class _Builder:
     def explore(self, root: int) -> _Explored:
         """Breadth-first exploration from the initial obligation, jumps included."""
         explored = _Explored()
-        start: Key = ("initial", root)
+        start = Key("initial", (root,))
         if root == self.store.true:
             start = TRUE
         elif root == self.store.false:
@@ -121,9 +165,9 @@ class _Builder:
             row = [self._successor(key, letter) for letter in self.letters]
             explored.delta.append([explored.id(k, self.max_states) for k, _ in row])
             explored.marks.append([m for _, m in row])
-            if key[0] == "initial" and self.mu:
-                for guess in guesses(self.substitution, int(key[1]), self.mu, self.nu):  # type: ignore[call-overload]
-                    target = explored.id(("accepting", *guess.state()), self.max_states)
+            if key.kind == "initial" and self.mu:
+                for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu):
+                    target = explored.id(Key.of_guess(guess), self.max_states)
                     explored.epsilon.append((position, target))
             position += 1
         return explored
@@ -134,28 +178,26 @@ class _Builder:
             return SINK, 0
         if key == TRUE:
             return TRUE, all_sets
-        if key[0] == "initial":
-            after = self.progression.step(key[1], letter)  # type: ignore[arg-type]
+        if key.kind == "initial":
+            after = self.progression.step(key.forms[0], letter)
             if after == store.false:
                 return SINK, 0
             if after == store.true:
                 return TRUE, 0
-            return ("initial", after), 0
-        guess = Guess.from_state(key[1:])
-        moved = guess.step(self.progression, letter, self.num_sets)
+            return Key("initial", (after,)), 0
+        moved = key.guess().step(self.progression, letter, self.num_sets)
         if moved is None:
             return SINK, 0
         next_guess, marks = moved
-        return ("accepting", *next_guess.state()), marks
+        return Key.of_guess(next_guess), marks
 
-    def finish(
-        self, explored: _Explored, formula_text: str, formula: ast.Formula
-    ) -> DigitalAutomaton:
+    def finish(self, explored: _Explored, formula_text: str) -> Translation:
         """Merge dead states into the sink, renumber breadth-first, attach the obligations."""
         keys = explored.keys
         sink_ids = {i for i, k in enumerate(keys) if k == SINK}
-        live = live_states(explored.delta, explored.marks, explored.epsilon, self.num_sets,
-                           sink_ids)
+        live = live_states(
+            explored.delta, explored.marks, explored.epsilon, self.num_sets, sink_ids
+        )
         order = _bfs_order(explored, live)
         new_id = {old: new for new, old in enumerate(order)}
         sink: int | None = None
@@ -170,10 +212,11 @@ class _Builder:
             return mapped
 
         delta = [tuple(target(t) for t in explored.delta[old]) for old in order]
-        marks = [tuple(explored.marks[old]) if old in live else tuple(0 for _ in self.letters)
-                 for old in order]
+        marks = [tuple(explored.marks[old]) for old in order]
         states = [self._state(keys[old]) for old in order]
+        new_keys = [keys[old] for old in order]
         if sink is not None:
+            new_keys.append(SINK)
             delta.append(tuple(sink for _ in self.letters))
             marks.append(tuple(0 for _ in self.letters))
             states.append(DigitalState("false", "initial", "violated"))
@@ -181,7 +224,7 @@ class _Builder:
             (new_id[s], new_id[t]) for s, t in explored.epsilon if s in live and t in live
         )
         initial = 0 if 0 in live else (sink if sink is not None else 0)
-        return DigitalAutomaton(
+        automaton = DigitalAutomaton(
             source=formula_text,
             formula=formula_text,
             propositions=self.store.propositions,
@@ -192,19 +235,18 @@ class _Builder:
             num_sets=self.num_sets,
             epsilon=tuple(epsilon),
         )
+        return Translation(automaton, self.store, tuple(new_keys))
 
     def _state(self, key: Key) -> DigitalState:
         if key == SINK:
             return DigitalState("false", "initial", "violated")
         if key == TRUE:
             return DigitalState("true", "initial", "satisfied")
-        component: Component = "initial" if key[0] == "initial" else "accepting"
-        if component == "initial":
-            text = form_text(self.store, key[1])  # type: ignore[arg-type]
-            return DigitalState(text, component, "pending")
-        guess = Guess.from_state(key[1:])
-        verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
-        return DigitalState(guess.text(self.store), component, verdict)
+        if key.kind == "initial":
+            return DigitalState(form_text(self.store, key.forms[0]), "initial", "pending")
+        guess = key.guess()
+        verdict: Verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
+        return DigitalState(guess.text(self.store), "accepting", verdict)
 
 
 def _bfs_order(explored: _Explored, live: set[int]) -> list[int]:

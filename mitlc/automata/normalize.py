@@ -49,17 +49,13 @@ def normalize(formula: ast.Formula, store: TermStore) -> int:
                 return temporal(store, kind, interval, nnf(operand, positive))
             case ast.Until(interval, left, right) | ast.Release(interval, left, right):
                 kind = UNTIL if isinstance(f, ast.Until) == positive else RELEASE
-                return temporal(
-                    store, kind, interval, nnf(left, positive), nnf(right, positive)
-                )
+                return temporal(store, kind, interval, nnf(left, positive), nnf(right, positive))
         raise TypeError(f"not a formula: {f!r}")
 
     return nnf(formula, True)
 
 
-def temporal(
-    store: TermStore, kind: str, interval: ast.Interval, left: int, right: int = 0
-) -> int:
+def temporal(store: TermStore, kind: str, interval: ast.Interval, left: int, right: int = 0) -> int:
     """A temporal operator on an interval, unbounded ones rewritten to start at 0."""
     lo = interval.lo
     if interval.hi is not None:

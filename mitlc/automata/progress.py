@@ -16,7 +16,7 @@ where ``p'`` is the progression of ``p`` and an interval ending below 0 contribu
 
 from __future__ import annotations
 
-from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, UNTIL, TermStore
+from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 
 
 class Progression:
@@ -60,13 +60,13 @@ class Progression:
         return found
 
     def _atom_reads(self, atom: int) -> int:
-        kind, a, b, left, right = self.store.atoms[atom]
+        kind, a, _, left, right = self.store.atoms[atom]
         if kind == LIT:
             return 1 << a
         if a > 0:  # a delayed operator reads nothing now, but an until's left operand
-            return self.reads(left) if kind in (UNTIL, "R") else 0
+            return self.reads(left) if kind in (UNTIL, RELEASE) else 0
         operand_reads = self.reads(left)
-        return operand_reads | self.reads(right) if kind in (UNTIL, "R") else operand_reads
+        return operand_reads | self.reads(right) if kind in (UNTIL, RELEASE) else operand_reads
 
     def _atom_step(self, atom: int, letter: int) -> int:
         key = (atom, letter)
@@ -83,21 +83,37 @@ class Progression:
             return store.true if bool(letter >> lo & 1) == bool(hi) else store.false
         later_hi = hi if hi == INF else hi - 1
         if kind in (EVENTUALLY, ALWAYS):
-            if lo > 0:
-                return store.temporal(kind, lo - 1, later_hi, left)
+            if lo > 0:  # a delay F[a,a] p ends in p itself; a window keeps its last step
+                return store.temporal(kind, lo - 1, later_hi, left, keep_point=lo != hi)
             now = self.step(left, letter)
             if kind == EVENTUALLY:
-                rest = store.false if hi == 0 else store.temporal(kind, 0, later_hi, left)
+                rest = (
+                    store.false
+                    if hi == 0
+                    else store.temporal(kind, 0, later_hi, left, keep_point=True)
+                )
                 return store.or_(now, rest)
-            rest = store.true if hi == 0 else store.temporal(kind, 0, later_hi, left)
+            rest = (
+                store.true if hi == 0 else store.temporal(kind, 0, later_hi, left, keep_point=True)
+            )
             return store.and_(now, rest)
         left_now = self.step(left, letter)
         if kind == UNTIL:
             if lo > 0:
-                return store.and_(left_now, store.temporal(kind, lo - 1, later_hi, left, right))
-            rest = store.false if hi == 0 else store.temporal(kind, 0, later_hi, left, right)
+                shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
+                return store.and_(left_now, shifted)
+            rest = (
+                store.false
+                if hi == 0
+                else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
+            )
             return store.or_(self.step(right, letter), store.and_(left_now, rest))
         if lo > 0:
-            return store.or_(left_now, store.temporal(kind, lo - 1, later_hi, left, right))
-        rest = store.true if hi == 0 else store.temporal(kind, 0, later_hi, left, right)
+            shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
+            return store.or_(left_now, shifted)
+        rest = (
+            store.true
+            if hi == 0
+            else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
+        )
         return store.and_(self.step(right, letter), store.or_(left_now, rest))

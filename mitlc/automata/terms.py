@@ -80,19 +80,24 @@ class TermStore:
         """The form of the literal ``p`` or ``!p``."""
         return self.atom_form(self.atom((LIT, prop, int(positive), 0, 0)))
 
-    def temporal(self, kind: str, lo: int, hi: int, left: int, right: int = 0) -> int:
+    def temporal(
+        self, kind: str, lo: int, hi: int, left: int, right: int = 0, keep_point: bool = False
+    ) -> int:
         """The form of a temporal operator, with the trivial cases folded away.
 
         For ``F``/``G`` the operand is ``left``; for ``U``/``R`` the operands are ``left`` and
         ``right``. ``[0,0]`` is the (right) operand itself; ``true U_I q`` is ``F_I q`` and
-        ``false R_I q`` is ``G_I q``; constants fold; ``F[a,a]`` and ``G[a,a]`` are delays.
+        ``false R_I q`` is ``G_I q``; constants fold; ``F[a,a]`` and ``G[a,a]`` are delays;
+        ``F F p`` is ``F p`` and ``G G p`` is ``G p``. With ``keep_point`` an operator on
+        ``[0,0]`` stays an atom: progression keeps it, so that folding can follow a bounded
+        obligation to its last step (``!a U[0,0] a`` is the last step of ``!a U[5,10] a``).
         """
         if kind == UNTIL and left == self.true:
             kind, left = EVENTUALLY, right
         elif kind == RELEASE and left == self.false:
             kind, left = ALWAYS, right
         operand = left if kind in (EVENTUALLY, ALWAYS) else right
-        if lo == 0 and hi == 0:
+        if lo == 0 and hi == 0 and not keep_point:
             return operand
         if operand in (self.true, self.false):
             # F_I c = G_I c = c; p U_I false = false; p R_I true = true; and from lo = 0,
@@ -102,10 +107,24 @@ class TermStore:
             if (kind == UNTIL) == (operand == self.false):
                 return operand
         if kind in (EVENTUALLY, ALWAYS):
-            if lo == hi:
+            if lo == hi and lo > 0:
                 return self.delay(lo, operand)
+            if hi == INF and self._is_unbounded(operand, kind):
+                return operand
             return self.atom_form(self.atom((kind, lo, hi, operand, 0)))
         return self.atom_form(self.atom((kind, lo, hi, left, right)))
+
+    def _is_unbounded(self, form: int, kind: str) -> bool:
+        """Whether ``form`` is the single unbounded atom ``F p`` (``G p``) for ``kind`` F (G)."""
+        cubes = self.forms[form]
+        if len(cubes) != 1:
+            return False
+        (cube,) = cubes
+        if len(cube) != 1:
+            return False
+        (only,) = cube
+        k, lo, hi, _, _ = self.atoms[only]
+        return k == kind and lo == 0 and hi == INF
 
     def delay(self, steps: int, operand: int) -> int:
         """``X^steps operand``, written ``F[steps,steps] operand``.
@@ -198,7 +217,7 @@ class TermStore:
         inside = _within((la, ha), (lb, hb))  # [la,ha] within [lb,hb]
         if ka == EVENTUALLY:
             return inside
-        if ka == ALWAYS or ka == RELEASE:
+        if ka in (ALWAYS, RELEASE):
             return _within((lb, hb), (la, ha))
         # until: a witness in [la,ha] is one in [lb,hb] when lb <= la and ha <= hb
         return inside

@@ -44,3 +44,24 @@ def _atom_ast(store: TermStore, atom: int) -> ast.Formula:
         return ast.Until(interval, form_ast(store, left), form_ast(store, right))
     assert kind == RELEASE
     return ast.Release(interval, form_ast(store, left), form_ast(store, right))
+
+
+def timed_atom_text(
+    store: TermStore, kind: str, left: int, right: int, lo: int, hi: int, clock: int
+) -> str:
+    """A bounded atom whose interval ``[lo,hi]`` is measured from the last reset of a clock,
+    written ``F[5,10]@x0 a``, ``!a U[5,10]@x0 a``."""
+    interval = f"[{lo},{hi}]@x{clock}"
+    if kind in (EVENTUALLY, ALWAYS):
+        return f"{kind}{interval} {_operand(store, left)}"
+    return f"{_operand(store, left)} {kind}{interval} {_operand(store, right)}"
+
+
+def atom_text(store: TermStore, atom: int) -> str:
+    """The text of one untimed atom."""
+    return to_text(_atom_ast(store, atom))
+
+
+def _operand(store: TermStore, form: int) -> str:
+    text = form_text(store, form)
+    return f"({text})" if " " in text else text

@@ -1,0 +1,349 @@
+"""Folding the digital automaton into a T-LDGBA: ``fold(translation) -> Tldgba``.
+
+Digital states that differ only in the time elapsed since their bounded obligations were
+spawned become one *location* with *clocks*. Each bounded atom of a state is written as a
+*timed atom*: its operator and operands, the interval it had when spawned (its base) and the
+clock started then; at clock value ``x`` its interval is ``[max(lo - x, 0), hi - x]``. Atoms
+spawned together share a clock. Reading a letter, an atom that is its predecessor shifted by one
+step keeps its clock (its lineage); any other bounded atom is fresh and takes the lowest free
+clock, which the edge resets. Unbounded operators and literals are untimed.
+
+A location's edges are read off the digital transitions of the (state, valuation) pairs it
+covers: for each letter and valuation, the target location, the resets and the acceptance
+marks. Guards partition each clock's range ``[0, bound]`` into intervals, clock by clock;
+valuations no run reaches take the behaviour of the nearest reachable one below (or above), so
+the edges stay deterministic and complete. Epsilon jumps carry no guard, so a location whose
+covered states disagree on their jumps is unfolded into one location per state.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import TypeAlias
+
+from mitlc.automata.digital import Verdict
+from mitlc.automata.guards import partition
+from mitlc.automata.ldba import StateKind, Translation
+from mitlc.automata.terms import INF, LIT, TermStore
+from mitlc.automata.text import atom_text, form_text, timed_atom_text
+from mitlc.automata.tldgba import Edge, Guard, Jump, Location, Tldgba
+
+TimedAtom: TypeAlias = tuple[str, int, int, int, int, int]
+"""``(kind, left, right, base_lo, base_hi, clock)``."""
+TAtom: TypeAlias = int | TimedAtom
+"""An untimed atom (its id) or a timed atom."""
+Template: TypeAlias = frozenset[frozenset[TAtom]]
+Valuation: TypeAlias = tuple[tuple[int, int], ...]
+"""``((clock, value), ...)`` for the clocks a location uses, sorted by clock."""
+
+
+@dataclass(frozen=True, slots=True)
+class LocKey:
+    """A location: the kind of its states, their forms as templates, and the tokens' seeds;
+    ``state`` names the one digital state of an unfolded location."""
+
+    kind: StateKind
+    templates: tuple[Template, ...] = ()
+    seeds: tuple[tuple[int, int], ...] = ()
+    state: int | None = None
+
+    def folded(self) -> LocKey:
+        """This location before any unfolding."""
+        return LocKey(self.kind, self.templates, self.seeds)
+
+
+Outcome: TypeAlias = tuple[LocKey, tuple[int, ...], int]
+"""``(target location, reset clocks, marks)``."""
+
+
+def shift(base_lo: int, base_hi: int, age: int) -> tuple[int, int]:
+    """The interval of an atom spawned with ``[base_lo, base_hi]``, ``age`` steps later."""
+    return max(base_lo - age, 0), base_hi - age
+
+
+@dataclass(slots=True)
+class _Matcher:
+    """Timed atoms of the source location, keyed by what their successor must look like."""
+
+    store: TermStore
+    by_signature: dict[tuple[object, ...], tuple[int, int, int, int]] = field(default_factory=dict)
+    kept: dict[int, int] = field(default_factory=dict)
+    fresh_used: bool = False
+    fresh_clock: int = -1
+
+    def add(self, atom: TimedAtom, values: dict[int, int], step: int, with_operands: bool) -> None:
+        kind, left, right, lo, hi, clock = atom
+        now = shift(lo, hi, values[clock] + step)
+        signature = (kind, left, right, *now) if with_operands else (kind, *now)
+        found = self.by_signature.get(signature)
+        if found is None or clock < found[2]:
+            self.by_signature[signature] = (lo, hi, clock, values[clock] + step)
+
+    def timed(self, atom_id: int, with_operands: bool) -> tuple[TAtom, int | None]:
+        """The timed atom for digital atom ``atom_id`` and its clock's value (None: fresh)."""
+        kind, lo, hi, left, right = self.store.atoms[atom_id]
+        signature = (kind, left, right, lo, hi) if with_operands else (kind, lo, hi)
+        found = self.by_signature.get(signature)
+        if found is None:
+            self.fresh_used = True
+            return (kind, left, right, lo, hi, -1), None
+        base_lo, base_hi, clock, value = found
+        self.kept[clock] = value
+        return (kind, left, right, base_lo, base_hi, clock), value
+
+
+def _is_timed(store: TermStore, atom_id: int) -> bool:
+    kind, _, hi, _, _ = store.atoms[atom_id]
+    return kind != LIT and hi != INF
+
+
+def _timed_atoms(template: Template) -> Iterable[TimedAtom]:
+    for cube in template:
+        for atom in cube:
+            if isinstance(atom, tuple):
+                yield atom
+
+
+@dataclass(slots=True)
+class _Folder:
+    translation: Translation
+    unfold: set[LocKey]
+    untimed: bool = False
+    locations: dict[LocKey, int] = field(default_factory=dict)
+    covered: list[dict[Valuation, int]] = field(default_factory=list)
+    behaviour: dict[tuple[int, Valuation], list[Outcome]] = field(default_factory=dict)
+    jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
+        default_factory=dict
+    )
+
+    @property
+    def store(self) -> TermStore:
+        return self.translation.store
+
+    def location_key(self, state: int, templates: tuple[Template, ...]) -> LocKey:
+        key = self.translation.keys[state]
+        if self.untimed:
+            return LocKey(key.kind, (), key.seeds, state)
+        loc = LocKey(key.kind, templates, key.seeds)
+        return LocKey(key.kind, templates, key.seeds, state) if loc in self.unfold else loc
+
+    def retemplate(
+        self, state: int, source: LocKey | None, values: dict[int, int], step: int
+    ) -> tuple[LocKey, dict[int, int], tuple[int, ...]]:
+        """The location and valuation of ``state`` reached from ``source`` (None: the start)."""
+        store = self.store
+        with_operands = step == 1
+        matcher = _Matcher(store)
+        for template in source.templates if source is not None else ():
+            for atom in _timed_atoms(template):
+                matcher.add(atom, values, step, with_operands)
+        raw: list[list[list[TAtom]]] = []
+        for form in self.translation.keys[state].forms:
+            raw.append(
+                [
+                    [matcher.timed(a, with_operands)[0] if _is_timed(store, a) else a for a in cube]
+                    for cube in store.forms[form]
+                ]
+            )
+        if source is None:
+            matcher.kept.clear()
+        fresh = min(c for c in range(len(matcher.kept) + 1) if c not in matcher.kept)
+        templates = tuple(
+            frozenset(frozenset(_with_clock(a, fresh) for a in cube) for cube in form)
+            for form in raw
+        )
+        new_values = dict(matcher.kept)
+        resets: tuple[int, ...] = ()
+        if self.untimed:
+            return self.location_key(state, templates), {}, ()
+        if matcher.fresh_used:
+            new_values[fresh] = 0
+            resets = (fresh,)
+        return self.location_key(state, templates), new_values, resets
+
+    def explore(self) -> None:
+        automaton = self.translation.automaton
+        start_key, start_values, _ = self.retemplate(automaton.initial, None, {}, 0)
+        queue = deque([(automaton.initial, start_key, start_values)])
+        # A symmetric template (two atoms alike but for their clocks) covers a state under
+        # several valuations, so a visit is a (state, location, valuation) triple.
+        seen = {(automaton.initial, start_key, _valuation(start_values))}
+        jumps: dict[int, list[int]] = {}
+        for s, t in automaton.epsilon:
+            jumps.setdefault(s, []).append(t)
+        while queue:
+            state, key, values = queue.popleft()
+            loc = self._location(key)
+            valuation = _valuation(values)
+            self.covered[loc][valuation] = state
+            outcomes: list[Outcome] = []
+            for letter in range(automaton.num_letters):
+                target = automaton.delta[state][letter]
+                t_key, t_values, resets = self.retemplate(target, key, values, 1)
+                outcomes.append((t_key, resets, automaton.marks[state][letter]))
+                if (target, t_key, _valuation(t_values)) not in seen:
+                    seen.add((target, t_key, _valuation(t_values)))
+                    queue.append((target, t_key, t_values))
+            self.behaviour[(loc, valuation)] = outcomes
+            jumped = set()
+            for target in jumps.get(state, ()):
+                t_key, t_values, resets = self.retemplate(target, key, values, 0)
+                jumped.add((t_key, resets))
+                if (target, t_key, _valuation(t_values)) not in seen:
+                    seen.add((target, t_key, _valuation(t_values)))
+                    queue.append((target, t_key, t_values))
+            self.jumps[(loc, valuation)] = frozenset(jumped)
+
+    def _location(self, key: LocKey) -> int:
+        found = self.locations.get(key)
+        if found is None:
+            found = len(self.locations)
+            self.locations[key] = found
+            self.covered.append({})
+        return found
+
+    def conflicts(self) -> set[LocKey]:
+        """Locations whose covered states disagree on their epsilon jumps."""
+        bad: set[LocKey] = set()
+        for key, loc in self.locations.items():
+            seen = {self.jumps[(loc, v)] for v in self.covered[loc]}
+            if len(seen) > 1:
+                bad.add(key.folded())
+        return bad
+
+
+def _valuation(values: dict[int, int]) -> Valuation:
+    return tuple(sorted(values.items()))
+
+
+def _with_clock(atom: TAtom, fresh: int) -> TAtom:
+    if isinstance(atom, tuple) and atom[5] == -1:
+        return (*atom[:5], fresh)
+    return atom
+
+
+MAX_REFINEMENTS = 8
+MAX_CLOCKS = 3
+"""More clocks than this and the digital automaton reads better than its folding."""
+
+
+def fold(translation: Translation) -> Tldgba:
+    """The T-LDGBA of a translation (see the module docstring).
+
+    When folding does not pay (no fewer locations than the digital automaton has states, which
+    happens when clocks get permuted, or more than ``MAX_CLOCKS`` clocks), or the jumps cannot
+    be made guard-free, the result is the digital automaton itself: one location per state and
+    no clocks.
+    """
+    unfold: set[LocKey] = set()
+    for _ in range(MAX_REFINEMENTS):
+        folder = _Folder(translation, unfold)
+        folder.explore()
+        conflicts = folder.conflicts()
+        if not conflicts:
+            folded = _build(folder)
+            states = len(translation.automaton.states)
+            if len(folded.locations) < states and len(folded.clock_bounds) <= MAX_CLOCKS:
+                return folded
+            break
+        unfold |= conflicts
+    return unfolded(translation)
+
+
+def unfolded(translation: Translation) -> Tldgba:
+    """The digital automaton as a T-LDGBA: one location per state, no clocks."""
+    folder = _Folder(translation, set(), untimed=True)
+    folder.explore()
+    return _build(folder)
+
+
+def _build(folder: _Folder) -> Tldgba:
+    automaton = folder.translation.automaton
+    store = folder.store
+    timed = [atom for key in folder.locations for t in key.templates for atom in _timed_atoms(t)]
+    bound = max((atom[4] for atom in timed), default=1)
+    num_clocks = 1 + max((atom[5] for atom in timed), default=-1)
+    locations, edges, jumps = [], [], []
+    for key, loc in folder.locations.items():
+        clocks = sorted({a[5] for t in key.templates for a in _timed_atoms(t)})
+        states = set(folder.covered[loc].values())
+        verdicts: set[Verdict] = {automaton.states[s].verdict for s in states}
+        verdict: Verdict = verdicts.pop() if len(verdicts) == 1 else "pending"
+        component = automaton.states[min(states)].component
+        text = (
+            automaton.states[key.state].obligation
+            if key.state is not None and not key.templates
+            else _key_text(store, key)
+        )
+        locations.append(Location(loc, f"q{loc}", text, component, verdict, tuple(clocks)))
+        edges.extend(_edges(folder, key, loc, clocks, bound))
+        some = next(iter(folder.covered[loc]))
+        for t_key, resets in sorted(
+            folder.jumps[(loc, some)], key=lambda j: folder.locations[j[0]]
+        ):
+            jumps.append(Jump(loc, folder.locations[t_key], resets))
+    return Tldgba(
+        source=automaton.source,
+        formula=automaton.formula,
+        propositions=automaton.propositions,
+        clock_bounds=tuple(bound for _ in range(num_clocks)),
+        num_sets=automaton.num_sets,
+        initial=0,
+        locations=tuple(locations),
+        edges=tuple(sorted(edges, key=_edge_order)),
+        epsilon=tuple(jumps),
+    )
+
+
+def _edges(folder: _Folder, key: LocKey, loc: int, clocks: list[int], bound: int) -> list[Edge]:
+    """The edges of one location: per letter, a partition of its valuations into guards; then
+    letters with the same guard and outcome share an edge."""
+    num_sets = folder.translation.automaton.num_sets
+    sink_key = next((k for k in folder.locations if k.kind == "sink"), None)
+    sink: Outcome | None = None if sink_key is None else (sink_key, (), 0)
+    grouped: dict[tuple[Guard, Outcome], set[int]] = {}
+    for letter in range(folder.translation.automaton.num_letters):
+        points = {
+            tuple(value for _, value in v): folder.behaviour[(loc, v)][letter]
+            for v in folder.covered[loc]
+        }
+        for box, outcome in partition(points, len(clocks), bound, sink):
+            guard: Guard = tuple(
+                (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)
+            )
+            grouped.setdefault((guard, outcome), set()).add(letter)
+    edges = []
+    for (guard, (t_key, resets, marks)), letters in grouped.items():
+        acc = tuple(k for k in range(num_sets) if marks >> k & 1)
+        edges.append(Edge(loc, folder.locations[t_key], frozenset(letters), guard, resets, acc))
+    return edges
+
+
+def _edge_order(edge: Edge) -> tuple[object, ...]:
+    return (edge.source, edge.guard, min(edge.letters), edge.target)
+
+
+def _key_text(store: TermStore, key: LocKey) -> str:
+    if key.kind in ("sink", "true"):
+        return "false" if key.kind == "sink" else "true"
+    parts = [_template_text(store, key.templates[0])]
+    parts += [f"G F ({form_text(store, seed)})" for _, seed in key.seeds]
+    return " & ".join(p for p in parts if p != "true") or "true"
+
+
+def _template_text(store: TermStore, template: Template) -> str:
+    cubes = sorted(template, key=lambda c: (len(c), sorted(map(str, c))))
+    if not cubes:
+        return "false"
+    texts = []
+    for cube in cubes:
+        atoms = sorted(
+            timed_atom_text(store, *a) if isinstance(a, tuple) else atom_text(store, a)
+            for a in cube
+        )
+        texts.append(" & ".join(atoms) if atoms else "true")
+    if len(texts) == 1:
+        return texts[0]
+    return " | ".join(f"({t})" if " & " in t else t for t in texts)

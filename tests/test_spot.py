@@ -1,0 +1,287 @@
+"""The Spot gate: mitlc's automaton of a formula has the language of Spot's LTL translation.
+
+Spot has no bounded operators, so :func:`to_spot` unrolls each into ``X`` by its definition
+(``p U[a,b] q`` holds when ``q`` holds at some delay ``j`` in ``[a,b]`` and ``p`` at every delay
+before ``j``). Each seeded formula is translated by mitlc (``translate`` → ``to_hoa`` →
+``spot.automaton``) and by Spot, and the two automata are compared with ``exclusive_word``. On a
+mismatch the test reports both texts, the word, which side accepts it and what mitlc's reference
+semantics (:func:`mitlc.semantics.holds_lasso`) says.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from mitlc.automata.hoa import to_hoa
+from mitlc.semantics import Lasso, holds_lasso
+from mitlc.syntax import ast, parse, to_text
+from tests.strategies import ATOMS, random_formula, random_lasso
+
+spot = pytest.importorskip("spot")
+buddy = pytest.importorskip("spot.buddy")
+ldba = pytest.importorskip("mitlc.automata.ldba")
+
+MAX_BOUND = 3
+
+
+# --- the unroller ---------------------------------------------------------------------------------
+
+
+def _x(k: int, text: str) -> str:
+    """``X^k text``."""
+    return "X(" * k + text + ")" * k
+
+
+def _all(parts: list[str]) -> str:
+    return "(" + " & ".join(parts) + ")" if parts else "true"
+
+
+def _any(parts: list[str]) -> str:
+    return "(" + " | ".join(parts) + ")" if parts else "false"
+
+
+def _until(interval: ast.Interval, p: str, q: str) -> str:
+    """``p U_I q``: some ``j`` in ``I`` with ``q`` at ``j`` and ``p`` at every ``k < j``."""
+    if interval.hi is None:
+        prefix = [_x(k, p) for k in range(interval.lo)]
+        return _all([*prefix, _x(interval.lo, f"({p} U {q})")])
+    options = [
+        _all([_x(j, q)] + [_x(k, p) for k in range(j)]) for j in range(interval.lo, interval.hi + 1)
+    ]
+    return _any(options)
+
+
+def to_spot(formula: ast.Formula) -> str:
+    """The formula in Spot's LTL syntax, every bounded operator unrolled into ``X``."""
+    match formula:
+        case ast.Bool(value):
+            return "true" if value else "false"
+        case ast.Atom(name):
+            return '"' + name + '"'
+        case ast.Not(operand):
+            return f"!{to_spot(operand)}"
+        case ast.Next(operand):
+            return _x(1, to_spot(operand))
+        case ast.Eventually(interval, operand):
+            return _until(interval, "true", to_spot(operand))
+        case ast.Always(interval, operand):
+            return f"!{_until(interval, 'true', '!' + to_spot(operand))}"
+        case ast.Until(interval, left, right):
+            return _until(interval, to_spot(left), to_spot(right))
+        case ast.Release(interval, left, right):
+            return f"!{_until(interval, '!' + to_spot(left), '!' + to_spot(right))}"
+        case ast.And(left, right):
+            return f"({to_spot(left)} & {to_spot(right)})"
+        case ast.Or(left, right):
+            return f"({to_spot(left)} | {to_spot(right)})"
+        case ast.Implies(left, right):
+            return f"({to_spot(left)} -> {to_spot(right)})"
+        case ast.Iff(left, right):
+            return f"({to_spot(left)} <-> {to_spot(right)})"
+    raise TypeError(f"not a formula: {formula!r}")
+
+
+# --- the formulas ---------------------------------------------------------------------------------
+
+Template = Callable[[ast.Formula, ast.Formula, ast.Interval], ast.Formula]
+
+F, G, X, N = ast.Eventually, ast.Always, ast.Next, ast.Not
+U, R, And, Or, Imp = ast.Until, ast.Release, ast.And, ast.Or, ast.Implies
+INF = ast.UNBOUNDED
+
+TEMPLATES: tuple[Template, ...] = (
+    lambda p, q, i: G(INF, F(INF, p)),
+    lambda p, q, i: F(INF, G(INF, p)),
+    lambda p, q, i: G(INF, Imp(p, F(i, q))),
+    lambda p, q, i: G(INF, Imp(p, X(q))),
+    lambda p, q, i: U(INF, p, q),
+    lambda p, q, i: R(INF, p, q),
+    lambda p, q, i: F(INF, And(p, X(G(INF, q)))),
+    lambda p, q, i: And(G(INF, F(INF, p)), F(INF, G(INF, q))),
+    lambda p, q, i: Imp(G(INF, F(INF, p)), G(INF, F(INF, q))),
+    lambda p, q, i: F(i, G(INF, p)),
+    lambda p, q, i: G(i, F(INF, p)),
+    lambda p, q, i: G(INF, F(i, p)),
+    lambda p, q, i: F(INF, G(i, p)),
+    lambda p, q, i: U(ast.Interval(i.lo, None), p, q),
+    lambda p, q, i: R(ast.Interval(i.lo, None), p, q),
+    lambda p, q, i: G(INF, Or(p, U(i, p, q))),
+    lambda p, q, i: G(INF, Imp(p, R(i, q, p))),
+    lambda p, q, i: U(INF, p, G(INF, q)),
+    lambda p, q, i: R(INF, F(INF, p), q),
+    lambda p, q, i: N(G(INF, F(i, Or(p, q)))),
+    lambda p, q, i: G(INF, Imp(p, X(U(INF, p, q)))),
+    lambda p, q, i: Or(F(INF, G(INF, p)), G(INF, F(i, q))),
+)
+
+
+def _small(rng: random.Random) -> ast.Formula:
+    return random_formula(rng, rng.choice((1, 1, 2)), ATOMS, True, MAX_BOUND)
+
+
+def _interval(rng: random.Random) -> ast.Interval:
+    lo = rng.randint(0, MAX_BOUND)
+    return ast.Interval(lo, rng.randint(lo, MAX_BOUND))
+
+
+def _has_unbounded(formula: ast.Formula) -> bool:
+    return any(i.is_unbounded for i in ast.intervals(formula))
+
+
+def gate_formulas(seed: int, counts: dict[int, int]) -> list[ast.Formula]:
+    """Seeded formulas with unbounded operators: ``counts[0]`` from the templates (``G F p``,
+    ``G(p -> F[i,j] q)``, ...) over small random operands, then ``counts[d]`` random formulas
+    of depth ``d`` for each other key (bounds up to 3)."""
+    rng = random.Random(seed)
+    out = [
+        TEMPLATES[k % len(TEMPLATES)](_small(rng), _small(rng), _interval(rng))
+        for k in range(counts.get(0, 0))
+    ]
+    for depth, count in sorted(counts.items()):
+        drawn = 0
+        while depth and drawn < count:
+            formula = random_formula(rng, depth, ATOMS, False, MAX_BOUND)
+            if _has_unbounded(formula):
+                out.append(formula)
+                drawn += 1
+    return out
+
+
+# --- the comparison -------------------------------------------------------------------------------
+
+
+def _letter_of(cond: Any, aut: Any) -> frozenset[str]:
+    """A letter (set of true atoms) satisfying the BDD ``cond`` over ``aut``'s atoms."""
+    for m in range(1 << len(ATOMS)):
+        text = " & ".join(a if m >> i & 1 else "!" + a for i, a in enumerate(ATOMS))
+        minterm = spot.formula_to_bdd(spot.formula(text), aut.get_dict(), aut)
+        if buddy.bdd_and(cond, minterm) != buddy.bddfalse:
+            return frozenset(a for i, a in enumerate(ATOMS) if m >> i & 1)
+    raise AssertionError("unsatisfiable letter in a word")
+
+
+def _word_text(letters: tuple[frozenset[str], ...]) -> str:
+    return "; ".join(" & ".join(a if a in s else "!" + a for a in ATOMS) for s in letters)
+
+
+def claims_hold(text: str) -> bool:
+    """Whether the HOA's ``deterministic``, ``semi-deterministic`` and ``complete`` claims hold,
+    checked by Spot once it has forgotten them."""
+    claims = next(line for line in text.splitlines() if line.startswith("properties:")).split()
+    aut = spot.automaton(text)
+    for prop in ("universal", "semi_deterministic", "complete"):
+        getattr(aut, "prop_" + prop)(spot.trival.maybe())
+    return (
+        ("deterministic" not in claims or spot.is_deterministic(aut))
+        and ("semi-deterministic" not in claims or spot.is_semi_deterministic(aut))
+        and ("complete" not in claims or spot.is_complete(aut))
+    )
+
+
+def _describe(formula: ast.Formula, word: Any, mine: Any, theirs: Any) -> str:
+    """A concrete lasso from Spot's ``word``, who accepts it, and the reference verdict."""
+    word.simplify()
+    prefix = tuple(_letter_of(c, mine) for c in word.prefix)
+    cycle = tuple(_letter_of(c, mine) for c in word.cycle)
+    lasso = (_word_text(prefix) + "; " if prefix else "") + "cycle{" + _word_text(cycle) + "}"
+    concrete = spot.parse_word(lasso, mine.get_dict()).as_automaton()
+    return (
+        f"formula: {to_text(formula)}\n  spot: {spot.formula(to_spot(formula))}\n"
+        f"  word: {lasso}\n  mitlc accepts: {mine.intersects(concrete)}"
+        f"  spot accepts: {theirs.intersects(concrete)}"
+        f"  reference semantics: {holds_lasso(formula, Lasso(prefix, cycle))}"
+    )
+
+
+def _mitlc(formula: ast.Formula) -> tuple[Any, str | None]:
+    """mitlc's automaton read by Spot, and a complaint when a claimed property is false."""
+    text = to_hoa(ldba.translate(formula))
+    if not claims_hold(text):
+        return None, f"formula: {to_text(formula)}\n  a property claimed in the HOA is false"
+    return spot.automaton(text), None
+
+
+def mismatch(formula: ast.Formula) -> tuple[bool, str | None]:
+    """``(full, problem)``: ``problem`` is ``None`` when mitlc and Spot agree on ``formula``,
+    else a description of a word on which they differ. ``full`` is false when Spot could not
+    complement an automaton (its 32-set limit); then each of mitlc's automata for the formula
+    and its negation is only checked to accept no word outside its language."""
+    mine, problem = _mitlc(formula)
+    if problem is not None:
+        return True, problem
+    theirs = spot.translate(to_spot(formula))
+    try:
+        word = mine.exclusive_word(theirs)
+    except RuntimeError:
+        negation = ast.Not(formula)
+        mine_neg, problem = _mitlc(negation)
+        if problem is not None:
+            return False, problem
+        theirs_neg = spot.translate(to_spot(negation))
+        for f, aut, other, spots in (
+            (formula, mine, theirs_neg, theirs),
+            (negation, mine_neg, theirs, theirs_neg),
+        ):
+            word = aut.intersecting_word(other)
+            if word is not None:
+                return False, _describe(f, word, aut, spots)
+        return False, None
+    return True, None if word is None else _describe(formula, word, mine, theirs)
+
+
+def test_unroller_matches_the_definitions() -> None:
+    cases = {
+        "F[1,2] a": "X(a | Xa)",
+        "G[1,inf) a": "XGa",
+        "a U[0,1] b": "b | (a & Xb)",
+        "a U[2,inf) b": "a & X(a & X(a U b))",
+        "a R[0,1] b": "b & (a | Xb)",
+        "a R[1,inf) b": "a | X(a R b)",
+    }
+    for text, expected in cases.items():
+        ours = spot.formula(to_spot(parse(text)))
+        assert spot.are_equivalent(ours, spot.formula(expected)), text
+
+
+def test_unroller_agrees_with_the_reference_semantics() -> None:
+    """Spot's automaton of the unrolled formula accepts a lasso iff mitlc's semantics says the
+    formula holds on it, so the gate compares the translation with the intended language."""
+    rng = random.Random(5)
+    for formula in gate_formulas(5, {0: 30, 3: 30}):
+        theirs = spot.translate(to_spot(formula))
+        for _ in range(15):
+            lasso = random_lasso(rng, rng.randint(0, 3), rng.randint(1, 3), ATOMS)
+            prefix = _word_text(lasso.prefix) + "; " if lasso.prefix else ""
+            text = prefix + "cycle{" + _word_text(lasso.loop) + "}"
+            word = spot.parse_word(text, theirs.get_dict()).as_automaton()
+            assert theirs.intersects(word) == holds_lasso(formula, lasso), (to_text(formula), text)
+
+
+def check(formulas: list[ast.Formula]) -> None:
+    """Fail with the five shortest disagreements, if any, or when more than 2% of the formulas
+    could only be checked in part."""
+    results = [mismatch(f) for f in formulas]
+    problems = sorted((p for _, p in results if p is not None), key=len)
+    assert not problems, f"{len(problems)} disagreements, shortest first:\n" + "\n".join(
+        problems[:5]
+    )
+    partial = sum(1 for full, _ in results if not full)
+    assert partial <= len(formulas) // 50, f"{partial} of {len(formulas)} checked only in part"
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_translation_agrees_with_spot(seed: int) -> None:
+    """250 formulas per seed (1000 in all): 100 from the templates, 100 random of depth 3 and
+    50 of depth 4."""
+    check(gate_formulas(seed, {0: 100, 3: 100, 4: 50}))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(100, 104))
+def test_translation_agrees_with_spot_at_length(seed: int) -> None:
+    """The longer gate (make verify): 1500 formulas per seed, up to depth 5."""
+    check(gate_formulas(seed, {0: 500, 3: 500, 4: 450, 5: 50}))
