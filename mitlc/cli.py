@@ -10,15 +10,22 @@ import functools
 import json
 import sys
 from collections.abc import Callable
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
 from mitlc import __version__
-from mitlc.errors import MitlcError
-from mitlc.syntax import Formula, ast_to_data, parse, parse_bytes, to_text
+from mitlc.automata import DEFAULT_MAX_STATES, compile_formula
+from mitlc.automata.artifact import from_data, to_json
+from mitlc.automata.dot import render, to_dot, write_atomically
+from mitlc.automata.hoa import to_hoa, to_hoa_stream
+from mitlc.automata.runs import run_states
+from mitlc.errors import MitlcError, SourceLocation, SpecError
+from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
 from mitlc.syntax.tree import tree_text
+from mitlc.traces import TraceError, read_trace, trace_columns
 
 app = typer.Typer(
     name="mitlc",
@@ -101,6 +108,143 @@ def parse_command(
     """Print the abstract syntax tree of a formula."""
     formula = load_formula(spec, expr)
     typer.echo(_json_dumps(ast_to_data(formula)) if as_json else tree_text(formula))
+
+
+class Format(StrEnum):
+    """Output formats of ``mitlc compile``."""
+
+    json = "json"
+    dot = "dot"
+    hoa = "hoa"
+
+
+MaxStatesOpt = Annotated[
+    int,
+    typer.Option(
+        "--max-states", min=1, help="Stop a translation that grows past this many states."
+    ),
+]
+OutOpt = Annotated[
+    Path | None, typer.Option("--output", "-o", help="Write here (atomically) instead of stdout.")
+]
+
+
+def _emit(text: str, output: Path | None) -> None:
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        write_atomically(output, text.encode("utf-8"))
+
+
+@app.command(name="compile")
+@_reports_errors
+def compile_command(
+    spec: SpecArg = None,
+    expr: ExprOpt = None,
+    fmt: Annotated[Format, typer.Option("--format", "-f", help="json, dot or hoa.")] = Format.json,
+    output: OutOpt = None,
+    batch: Annotated[
+        Path | None,
+        typer.Option(
+            "--batch", help="Compile one formula per line of FILE (JSON Lines, or a HOA stream)."
+        ),
+    ] = None,
+    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+) -> None:
+    """Compile a formula into its timed LDGBA (JSON artifact, DOT drawing or HOA)."""
+    if batch is not None:
+        if spec is not None or expr is not None:
+            raise UsageError("mitlc: --batch reads its formulas from FILE; give no SPEC or -e")
+        _emit(_compile_batch(batch, fmt, max_states), output)
+        return
+    compiled = compile_formula(load_formula(spec, expr), max_states=max_states)
+    if fmt is Format.hoa:
+        text = to_hoa(compiled.digital)
+    elif fmt is Format.dot:
+        text = to_dot(compiled.timed)
+    else:
+        text = to_json(compiled.timed)
+    _emit(text, output)
+
+
+def _batch_formulas(path: Path) -> list[Formula]:
+    formulas = []
+    text = path.read_bytes().decode("utf-8", errors="strict")
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            formulas.append(parse(line, str(path)))
+        except SpecError as err:
+            loc = err.location
+            moved = SourceLocation(loc.filename, number, loc.column, loc.line_text)
+            raise type(err)(err.message, moved) from None
+    return formulas
+
+
+def _compile_batch(path: Path, fmt: Format, max_states: int) -> str:
+    compiled = [compile_formula(f, max_states=max_states) for f in _batch_formulas(path)]
+    if fmt is Format.hoa:
+        return to_hoa_stream(c.digital for c in compiled)
+    if fmt is Format.dot:
+        raise UsageError("mitlc: --batch writes json (JSON Lines) or hoa")
+    return "".join(to_json(c.timed, indent=None) for c in compiled)
+
+
+@app.command(name="render")
+@_reports_errors
+def render_command(
+    source: Annotated[
+        str | None,
+        typer.Argument(help="A spec file, '-' for standard input, or an AUTOMATON.json artifact."),
+    ] = None,
+    expr: ExprOpt = None,
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="FILE.png, FILE.svg or FILE.dot.")
+    ] = Path("automaton.png"),
+    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+) -> None:
+    """Draw the timed LDGBA of a formula or of a compiled artifact."""
+    if source is not None and source.endswith(".json"):
+        try:
+            data = json.loads(Path(source).read_text(encoding="utf-8"))
+        except json.JSONDecodeError as err:
+            raise UsageError(f"{source}:{err.lineno}:{err.colno}: not JSON: {err.msg}") from None
+        timed = from_data(data)
+    else:
+        timed = compile_formula(load_formula(source, expr), max_states=max_states).timed
+    render(to_dot(timed), output)
+    typer.echo(f"wrote {output}", err=True)
+
+
+@app.command()
+@_reports_errors
+def monitor(
+    spec: Annotated[str, typer.Argument(help="A spec file, or '-' for standard input.")],
+    trace: Annotated[
+        Path, typer.Argument(help="The trace: CSV (header of propositions) or JSONL.")
+    ],
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object per step.")] = False,
+    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+) -> None:
+    """Print the three-valued verdict (satisfied, violated, pending) after each step of a trace."""
+    formula = load_formula(spec, None)
+    text = trace.read_text(encoding="utf-8")
+    columns = trace_columns(trace, text)
+    missing = sorted(set(atoms(formula)) - columns) if columns is not None else []
+    if missing:
+        raise TraceError(f"{trace}: no column for the spec's proposition(s) {', '.join(missing)}")
+    letters = read_trace(trace, text)
+    digital = compile_formula(formula, max_states=max_states).digital
+    states = run_states(digital, letters)
+    for step, (letter, state) in enumerate(zip(letters, states[1:], strict=True)):
+        verdict = digital.states[state].verdict
+        true = sorted(letter & set(digital.propositions))
+        if as_json:
+            row = {"step": step, "true": true, "verdict": verdict}
+            typer.echo(json.dumps(row, sort_keys=True))
+        else:
+            typer.echo(f"{step:>5}  {verdict:<9}  {'{' + ', '.join(true) + '}'}")
 
 
 def _version(value: bool) -> None:
