@@ -3,9 +3,10 @@
 Spot has no bounded operators, so :func:`to_spot` unrolls each into ``X`` by its definition
 (``p U[a,b] q`` holds when ``q`` holds at some delay ``j`` in ``[a,b]`` and ``p`` at every delay
 before ``j``). Each seeded formula is translated by mitlc (``translate`` → ``to_hoa`` →
-``spot.automaton``) and by Spot, and the two automata are compared with ``exclusive_word``. On a
-mismatch the test reports both texts, the word, which side accepts it and what mitlc's reference
-semantics (:func:`mitlc.semantics.holds_lasso`) says.
+``spot.automaton``) and by Spot; mitlc's automaton must meet no word of Spot's automaton for the
+negation, and its complement none of Spot's for the formula. On a mismatch the test reports
+both texts, the word, which side accepts it and what mitlc's reference semantics
+(:func:`mitlc.semantics.holds_lasso`) says.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ buddy = pytest.importorskip("spot.buddy")
 ldba = pytest.importorskip("mitlc.automata.ldba")
 
 MAX_BOUND = 3
+COMPLEMENT_LIMIT = 1000
+"""mitlc automata with more states are complemented only when deterministic (see mismatch)."""
 
 
 # --- the unroller ---------------------------------------------------------------------------------
@@ -205,32 +208,42 @@ def _mitlc(formula: ast.Formula) -> tuple[Any, str | None]:
     return spot.automaton(text), None
 
 
+def _complement(aut: Any) -> Any:
+    """Spot's complement of ``aut``, or ``None`` when it is too costly: a nondeterministic
+    automaton over :data:`COMPLEMENT_LIMIT` states, or one past Spot's 32-set limit."""
+    if aut.num_states() > COMPLEMENT_LIMIT and not spot.is_deterministic(aut):
+        return None
+    try:
+        return spot.complement(aut)
+    except RuntimeError:
+        return None
+
+
 def mismatch(formula: ast.Formula) -> tuple[bool, str | None]:
     """``(full, problem)``: ``problem`` is ``None`` when mitlc and Spot agree on ``formula``,
-    else a description of a word on which they differ. ``full`` is false when Spot could not
-    complement an automaton (its 32-set limit); then each of mitlc's automata for the formula
-    and its negation is only checked to accept no word outside its language."""
+    else a description of a word on which they differ.
+
+    mitlc's automaton must meet no word of Spot's automaton for the negation (soundness), and
+    its complement none of Spot's automaton for the formula (completeness). When the complement
+    is too costly (``full`` is false) mitlc's automaton for the negation is checked for
+    soundness instead."""
     mine, problem = _mitlc(formula)
     if problem is not None:
         return True, problem
-    theirs = spot.translate(to_spot(formula))
-    try:
-        word = mine.exclusive_word(theirs)
-    except RuntimeError:
-        negation = ast.Not(formula)
-        mine_neg, problem = _mitlc(negation)
-        if problem is not None:
-            return False, problem
-        theirs_neg = spot.translate(to_spot(negation))
-        for f, aut, other, spots in (
-            (formula, mine, theirs_neg, theirs),
-            (negation, mine_neg, theirs, theirs_neg),
-        ):
-            word = aut.intersecting_word(other)
-            if word is not None:
-                return False, _describe(f, word, aut, spots)
-        return False, None
-    return True, None if word is None else _describe(formula, word, mine, theirs)
+    negation = ast.Not(formula)
+    theirs, theirs_neg = spot.translate(to_spot(formula)), spot.translate(to_spot(negation))
+    word = mine.intersecting_word(theirs_neg)
+    if word is not None:
+        return True, _describe(formula, word, mine, theirs)
+    complement = _complement(mine)
+    if complement is not None:
+        word = theirs.intersecting_word(complement)
+        return True, None if word is None else _describe(formula, word, mine, theirs)
+    mine_neg, problem = _mitlc(negation)
+    if problem is None:
+        word = mine_neg.intersecting_word(theirs)
+        problem = None if word is None else _describe(negation, word, mine_neg, theirs_neg)
+    return False, problem
 
 
 def test_unroller_matches_the_definitions() -> None:

@@ -199,10 +199,19 @@ class _Folder:
     def _location(self, key: LocKey) -> int:
         found = self.locations.get(key)
         if found is None:
+            if not self.untimed and self._too_big(key):
+                raise _NotWorthFolding
+
             found = len(self.locations)
             self.locations[key] = found
             self.covered.append({})
         return found
+
+    def _too_big(self, key: LocKey) -> bool:
+        """Folding stops paying with as many locations as states, or too many clocks."""
+        if len(self.locations) >= len(self.translation.automaton.states):
+            return True
+        return any(a[5] >= MAX_CLOCKS for t in key.templates for a in _timed_atoms(t))
 
     def conflicts(self) -> set[LocKey]:
         """Locations whose covered states disagree on their epsilon jumps."""
@@ -224,6 +233,10 @@ def _with_clock(atom: TAtom, fresh: int) -> TAtom:
     return atom
 
 
+class _NotWorthFolding(Exception):
+    """Raised while exploring once the folding is known to be no better than no folding."""
+
+
 MAX_REFINEMENTS = 8
 MAX_CLOCKS = 3
 """More clocks than this and the digital automaton reads better than its folding."""
@@ -240,7 +253,10 @@ def fold(translation: Translation) -> Tldgba:
     unfold: set[LocKey] = set()
     for _ in range(MAX_REFINEMENTS):
         folder = _Folder(translation, unfold)
-        folder.explore()
+        try:
+            folder.explore()
+        except _NotWorthFolding:
+            break
         conflicts = folder.conflicts()
         if not conflicts:
             folded = _build(folder)
