@@ -17,7 +17,10 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
   and restarts empty (:mod:`mitlc.automata.accepting`).
 * A formula without unbounded F/U is a safety formula: the progression automaton alone with zero
   acceptance sets. One without unbounded G/R is a co-safety formula: the progression automaton
-  with one set, on ``true``. Both are deterministic; only the rest get epsilon jumps.
+  with one set, on ``true``. A conjunction of safety, co-safety and ``G χ`` (``χ`` co-safety)
+  parts has a deterministic breakpoint construction (:mod:`mitlc.automata.recurrence`).
+  All three are deterministic; only the rest (persistence,
+  as in ``F G p``, and mixtures) get epsilon jumps.
 * States with no accepting continuation merge into one rejecting sink; ``true`` is the
   accepting sink; states are numbered in breadth-first order, so output is canonical.
 """
@@ -32,6 +35,7 @@ from mitlc.automata.digital import DigitalAutomaton, DigitalState, Verdict
 from mitlc.automata.graph import live_states
 from mitlc.automata.normalize import normalize
 from mitlc.automata.progress import Progression
+from mitlc.automata.recurrence import Recurrence, split_recurrence
 from mitlc.automata.terms import TermStore
 from mitlc.automata.text import form_text
 from mitlc.errors import MitlcError
@@ -39,7 +43,7 @@ from mitlc.syntax import ast, to_text
 
 MAX_PROPOSITIONS = 16
 
-StateKind: TypeAlias = Literal["initial", "accepting", "sink", "true"]
+StateKind: TypeAlias = Literal["initial", "accepting", "recurrence", "sink", "true"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,7 +51,8 @@ class Key:
     """What a digital state stands for: its kind and its normal forms.
 
     ``initial``: ``forms == (obligation,)``. ``accepting``: ``forms == (safety, pending...)``
-    with one pending token per ``(k, seed)`` in ``seeds``. ``sink`` and ``true``: no forms.
+    with one pending token per ``(k, seed)`` in ``seeds``. ``recurrence``: ``forms == (S, C,
+    B_1, N_1, ...)`` (:mod:`mitlc.automata.recurrence`). ``sink`` and ``true``: no forms.
     """
 
     kind: StateKind
@@ -128,7 +133,11 @@ def translate_terms(formula: ast.Formula, *, max_states: int = 1_000_000) -> Tra
     root = normalize(formula, store)
     mu, nu = unbounded_atoms(store, root)
     num_sets = 0 if not mu else 1 if not nu else len(mu)
+    recurrence = split_recurrence(store, root) if mu and nu else None
+    if recurrence is not None:
+        mu, num_sets = (), recurrence.num_sets
     builder = _Builder(store, Progression(store), mu if nu else (), nu, num_sets, max_states)
+    builder.recurrence = recurrence
     explored = builder.explore(root)
     return builder.finish(explored, to_text(formula))
 
@@ -142,6 +151,7 @@ class _Builder:
     num_sets: int
     max_states: int
     substitution: Substitution = field(init=False)
+    recurrence: Recurrence | None = None
 
     def __post_init__(self) -> None:
         self.substitution = Substitution(self.store)
@@ -154,7 +164,9 @@ class _Builder:
         """Breadth-first exploration from the initial obligation, jumps included."""
         explored = _Explored()
         start = Key("initial", (root,))
-        if root == self.store.true:
+        if self.recurrence is not None:
+            start = Key("recurrence", self.recurrence.start(self.store))
+        elif root == self.store.true:
             start = TRUE
         elif root == self.store.false:
             start = SINK
@@ -185,6 +197,12 @@ class _Builder:
             if after == store.true:
                 return TRUE, 0
             return Key("initial", (after,)), 0
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            stepped = self.recurrence.step(self.progression, key.forms, letter)
+            if stepped is None:
+                return SINK, 0
+            return Key("recurrence", stepped[0]), stepped[1]
         moved = key.guess().step(self.progression, letter, self.num_sets)
         if moved is None:
             return SINK, 0
@@ -244,6 +262,10 @@ class _Builder:
             return DigitalState("true", "initial", "satisfied")
         if key.kind == "initial":
             return DigitalState(form_text(self.store, key.forms[0]), "initial", "pending")
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            owed = self.recurrence.obligation(self.store, key.forms)
+            return DigitalState(form_text(self.store, owed), "initial", "pending")
         guess = key.guess()
         verdict: Verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
         return DigitalState(guess.text(self.store), "accepting", verdict)

@@ -1,0 +1,111 @@
+"""A deterministic automaton for ``S & C & G χ_1 & ... & G χ_n``: a breakpoint construction.
+
+When the formula is a conjunction of a safety part ``S`` (no unbounded F or U), a co-safety
+part ``C`` (no unbounded G or R) and recurrences ``G χ_i`` whose operands are co-safety, no
+guess is needed. ``G χ`` holds iff the obligation ``χ`` started at every position is eventually
+met; for each ``χ_i`` the state keeps two conjunctions of pending tokens, in the manner of
+Miyano and Hayashi's breakpoint (Theor. Comput. Sci. 32, 1984): ``B``, the tokens started
+before the last breakpoint, and ``N``, those started since. Reading a letter,
+``B' = af(B)`` and ``N' = af(N & χ)``; a token that fails sends the run to the sink; when ``B'``
+is ``true`` every token of the old batch was met, the step is in acceptance set ``i``, and
+``N'`` becomes the batch. ``S`` fails into the sink; ``C``, once met, marks the last set on
+every step. Examples: ``G F a``, ``G (req -> F done)``, ``G a & F b``, ``G F a & G F b``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mitlc.automata.accepting import closure, unbounded_atoms
+from mitlc.automata.progress import Progression
+from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, RELEASE, UNTIL, TermStore
+
+
+@dataclass(frozen=True, slots=True)
+class Recurrence:
+    """The split ``S & C & G chi_1 & ... & G chi_n`` of a formula."""
+
+    safety: int
+    cosafety: int
+    chis: tuple[int, ...]
+
+    cosafety_set_needed: bool
+    """Whether a co-safety part is owed (then it has the last acceptance set)."""
+
+    @property
+    def num_sets(self) -> int:
+        """One set per recurrence, and one for a co-safety part."""
+        return len(self.chis) + int(self.cosafety_set_needed)
+
+    def start(self, store: TermStore) -> tuple[int, ...]:
+        """The forms ``(S, C, B_1, N_1, ..., B_n, N_n)`` of the initial state."""
+        return (self.safety, self.cosafety, *(store.true for _ in range(2 * len(self.chis))))
+
+    def step(
+        self, progression: Progression, forms: tuple[int, ...], letter: int
+    ) -> tuple[tuple[int, ...], int] | None:
+        """The successor forms and marks on ``letter``; ``None`` for the sink."""
+        store = progression.store
+        safety = progression.step(forms[0], letter)
+        cosafety = progression.step(forms[1], letter)
+        if store.false in (safety, cosafety):
+            return None
+        marks = 0
+        tokens: list[int] = []
+        for i, chi in enumerate(self.chis):
+            batch = progression.step(forms[2 + 2 * i], letter)
+            fresh = progression.step(store.and_(forms[3 + 2 * i], chi), letter)
+            if store.false in (batch, fresh):
+                return None
+            if batch == store.true:
+                marks |= 1 << i
+                batch, fresh = fresh, store.true
+            tokens += [batch, fresh]
+        if self.cosafety_set_needed and cosafety == store.true:
+            marks |= 1 << len(self.chis)
+        return (safety, cosafety, *tokens), marks
+
+    def obligation(self, store: TermStore, forms: tuple[int, ...]) -> int:
+        """What a state owes: ``S & C``, the pending tokens, and every ``G chi``."""
+        always = [store.temporal(ALWAYS, 0, INF, chi) for chi in self.chis]
+        return store.all_of((*forms, *always))
+
+
+def _has(store: TermStore, form: int, kinds: tuple[str, ...]) -> bool:
+    for atom in closure(store, form):
+        kind, lo, hi, _, _ = store.atoms[atom]
+        if kind in kinds and lo == 0 and hi == INF:
+            return True
+    return False
+
+
+def split_recurrence(store: TermStore, root: int) -> Recurrence | None:
+    """The split of ``root`` (see the module docstring), or ``None`` when it has another shape."""
+    cubes = store.forms[root]
+    if len(cubes) != 1:
+        return None
+    (cube,) = cubes
+    chis: list[int] = []
+    safety, cosafety = [], []
+    for atom in sorted(cube):
+        form = store.atom_form(atom)
+        kind, lo, hi, left, _ = store.atoms[atom]
+        if not _has(store, form, (EVENTUALLY, UNTIL)):
+            safety.append(form)
+        elif not _has(store, form, (ALWAYS, RELEASE)):
+            cosafety.append(form)
+        elif kind == ALWAYS and lo == 0 and hi == INF and not unbounded_atoms(store, left)[1]:
+            chis.extend(_conjuncts(store, left))
+        else:
+            return None
+    rest = store.all_of(cosafety)
+    return Recurrence(store.all_of(safety), rest, tuple(chis), rest != store.true)
+
+
+def _conjuncts(store: TermStore, form: int) -> list[int]:
+    """``G (x & y)`` is ``G x & G y``: one breakpoint each is smaller than one for both."""
+    cubes = store.forms[form]
+    if len(cubes) != 1:
+        return [form]
+    (cube,) = cubes
+    return [store.atom_form(a) for a in sorted(cube)]

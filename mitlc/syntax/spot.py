@@ -1,0 +1,66 @@
+"""Formulas in Spot's LTL syntax, every bounded operator unrolled into ``X``.
+
+Spot has no bounded operators, so each is written out by its definition: ``p U[a,b] q`` holds
+when ``q`` holds at some delay ``j`` in ``[a,b]`` and ``p`` at every delay before ``j``;
+``F_I q = true U_I q``, ``G_I q = !F_I !q``, ``p R_I q = !(!p U_I !q)``, and
+``p U[a,inf) q = p & X p & ... & X^(a-1) p & X^a (p U q)``. The text grows with the bounds
+(``F[0,k]`` has ``k + 1`` disjuncts). Used to check mitlc against Spot and to compare with it.
+"""
+
+from __future__ import annotations
+
+from mitlc.syntax import ast
+
+
+def _x(k: int, text: str) -> str:
+    """``X^k text``."""
+    return "X(" * k + text + ")" * k
+
+
+def _all(parts: list[str]) -> str:
+    return "(" + " & ".join(parts) + ")" if parts else "true"
+
+
+def _any(parts: list[str]) -> str:
+    return "(" + " | ".join(parts) + ")" if parts else "false"
+
+
+def _until(interval: ast.Interval, p: str, q: str) -> str:
+    """``p U_I q``: some ``j`` in ``I`` with ``q`` at ``j`` and ``p`` at every ``k < j``."""
+    if interval.hi is None:
+        prefix = [_x(k, p) for k in range(interval.lo)]
+        return _all([*prefix, _x(interval.lo, f"({p} U {q})")])
+    options = [
+        _all([_x(j, q)] + [_x(k, p) for k in range(j)]) for j in range(interval.lo, interval.hi + 1)
+    ]
+    return _any(options)
+
+
+def to_spot(formula: ast.Formula) -> str:
+    """The formula in Spot's LTL syntax, every bounded operator unrolled into ``X``."""
+    match formula:
+        case ast.Bool(value):
+            return "true" if value else "false"
+        case ast.Atom(name):
+            return '"' + name + '"'
+        case ast.Not(operand):
+            return f"!{to_spot(operand)}"
+        case ast.Next(operand):
+            return _x(1, to_spot(operand))
+        case ast.Eventually(interval, operand):
+            return _until(interval, "true", to_spot(operand))
+        case ast.Always(interval, operand):
+            return f"!{_until(interval, 'true', '!' + to_spot(operand))}"
+        case ast.Until(interval, left, right):
+            return _until(interval, to_spot(left), to_spot(right))
+        case ast.Release(interval, left, right):
+            return f"!{_until(interval, '!' + to_spot(left), '!' + to_spot(right))}"
+        case ast.And(left, right):
+            return f"({to_spot(left)} & {to_spot(right)})"
+        case ast.Or(left, right):
+            return f"({to_spot(left)} | {to_spot(right)})"
+        case ast.Implies(left, right):
+            return f"({to_spot(left)} -> {to_spot(right)})"
+        case ast.Iff(left, right):
+            return f"({to_spot(left)} <-> {to_spot(right)})"
+    raise TypeError(f"not a formula: {formula!r}")
