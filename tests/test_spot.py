@@ -242,3 +242,12 @@ def test_translation_agrees_with_spot(seed: int) -> None:
 def test_translation_agrees_with_spot_at_length(seed: int) -> None:
     """The longer gate (make verify): 1500 formulas per seed, up to depth 5."""
     check(gate_formulas(seed, {0: 500, 3: 500, 4: 450, 5: 50}))
+
+
+def test_unrolled_size_is_the_length_of_the_unrolled_text() -> None:
+    from mitlc.syntax.spot import unrolled_size
+
+    rng = random.Random(5)
+    for _ in range(300):
+        formula = random_formula(rng, rng.randint(1, 4), ATOMS, bounded=False, max_bound=5)
+        assert unrolled_size(formula) == len(to_spot(formula)), to_text(formula)

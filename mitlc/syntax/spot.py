@@ -64,3 +64,49 @@ def to_spot(formula: ast.Formula) -> str:
         case ast.Iff(left, right):
             return f"({to_spot(left)} <-> {to_spot(right)})"
     raise TypeError(f"not a formula: {formula!r}")
+
+
+def unrolled_size(formula: ast.Formula) -> int:
+    """``len(to_spot(formula))``, computed without building the text, which grows with the
+    square of the bounds for until (``p U[k,2k] q`` repeats ``p`` about ``1.5 k^2`` times)."""
+    match formula:
+        case ast.Bool(value):
+            return 4 if value else 5
+        case ast.Atom(name):
+            return len(name) + 2
+        case ast.Not(operand):
+            return 1 + unrolled_size(operand)
+        case ast.Next(operand):
+            return 3 + unrolled_size(operand)
+        case ast.Eventually(interval, operand):
+            return _until_size(interval, 4, unrolled_size(operand))
+        case ast.Always(interval, operand):
+            return 1 + _until_size(interval, 4, 1 + unrolled_size(operand))
+        case ast.Until(interval, left, right):
+            return _until_size(interval, unrolled_size(left), unrolled_size(right))
+        case ast.Release(interval, left, right):
+            return 1 + _until_size(interval, 1 + unrolled_size(left), 1 + unrolled_size(right))
+        case ast.And(left, right) | ast.Or(left, right):
+            return 5 + unrolled_size(left) + unrolled_size(right)
+        case ast.Implies(left, right):
+            return 6 + unrolled_size(left) + unrolled_size(right)
+        case ast.Iff(left, right):
+            return 7 + unrolled_size(left) + unrolled_size(right)
+    raise TypeError(f"not a formula: {formula!r}")
+
+
+def _join_size(sizes_sum: int, count: int, empty: int) -> int:
+    """The length of ``_all``/``_any`` of ``count`` parts whose lengths add to ``sizes_sum``."""
+    return 2 + sizes_sum + 3 * (count - 1) if count else empty
+
+
+def _until_size(interval: ast.Interval, p: int, q: int) -> int:
+    lo = interval.lo
+    if interval.hi is None:
+        prefix = 3 * lo * (lo - 1) // 2 + lo * p
+        return _join_size(prefix + 3 * lo + p + q + 5, lo + 1, 4)
+    total = 0
+    for j in range(lo, interval.hi + 1):
+        parts = 3 * j + q + 3 * j * (j - 1) // 2 + j * p
+        total += _join_size(parts, j + 1, 4)
+    return _join_size(total, interval.hi - lo + 1, 5)
