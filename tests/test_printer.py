@@ -15,35 +15,16 @@ from hypothesis.extra.lark import from_lark
 from mitlc.errors import SpecError
 from mitlc.syntax import ast, parse, to_text
 from mitlc.syntax.grammar import lalr_parser
+from tests import strategies
 from tests.grammar_walk import check_spellings, random_text
 
-ATOM_NAMES = st.sampled_from(["a", "b", "req", "done", "room_2", "x1", "trueish", "fa"])
-
-intervals = st.one_of(
-    st.just(ast.UNBOUNDED),
-    st.integers(0, 30).map(lambda lo: ast.Interval(lo, None)),
-    st.tuples(st.integers(0, 30), st.integers(0, 30)).map(lambda p: ast.Interval(min(p), max(p))),
+# Every node kind, bounded and unbounded intervals, and names that look like keywords.
+formulas = strategies.formulas(
+    atoms=["a", "b", "req", "done", "room_2", "x1", "trueish", "fa"],
+    bounded=False,
+    max_bound=30,
+    max_leaves=12,
 )
-
-leaves = st.one_of(st.booleans().map(ast.Bool), ATOM_NAMES.map(ast.Atom))
-
-
-def _extend(inner: st.SearchStrategy[ast.Formula]) -> st.SearchStrategy[ast.Formula]:
-    return st.one_of(
-        inner.map(ast.Not),
-        inner.map(ast.Next),
-        st.builds(ast.Eventually, intervals, inner),
-        st.builds(ast.Always, intervals, inner),
-        st.builds(ast.And, inner, inner),
-        st.builds(ast.Or, inner, inner),
-        st.builds(ast.Implies, inner, inner),
-        st.builds(ast.Iff, inner, inner),
-        st.builds(ast.Until, intervals, inner, inner),
-        st.builds(ast.Release, intervals, inner, inner),
-    )
-
-
-formulas = st.recursive(leaves, _extend, max_leaves=12)
 
 
 @settings(max_examples=500, deadline=None)

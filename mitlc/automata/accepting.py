@@ -72,14 +72,7 @@ class Substitution:
         self.mu = cache(self._mu)
 
     def _nu(self, form: int, xs: frozenset[int]) -> int:
-        store = self.store
-        result = store.false
-        for cube in store.forms[form]:
-            conjunction = store.true
-            for atom in cube:
-                conjunction = store.and_(conjunction, self._nu_atom(atom, xs))
-            result = store.or_(result, conjunction)
-        return result
+        return self.store.substitute(form, lambda atom: self._nu_atom(atom, xs))
 
     def _nu_atom(self, atom: int, xs: frozenset[int]) -> int:
         store = self.store
@@ -98,14 +91,7 @@ class Substitution:
         return store.temporal(kind, lo, hi, self.nu(left, xs), self.nu(right, xs))
 
     def _mu(self, form: int, ys: frozenset[int]) -> int:
-        store = self.store
-        result = store.false
-        for cube in store.forms[form]:
-            conjunction = store.true
-            for atom in cube:
-                conjunction = store.and_(conjunction, self._mu_atom(atom, ys))
-            result = store.or_(result, conjunction)
-        return result
+        return self.store.substitute(form, lambda atom: self._mu_atom(atom, ys))
 
     def _mu_atom(self, atom: int, ys: frozenset[int]) -> int:
         store = self.store

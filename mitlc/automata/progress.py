@@ -34,17 +34,7 @@ class Progression:
         key = (form, letter)
         found = self._form_cache.get(key)
         if found is None:
-            store = self.store
-            found = store.false
-            for cube in store.forms[form]:
-                conjunction = store.true
-                for atom in cube:
-                    conjunction = store.and_(conjunction, self._atom_step(atom, letter))
-                    if conjunction == store.false:
-                        break
-                found = store.or_(found, conjunction)
-                if found == store.true:
-                    break
+            found = self.store.substitute(form, lambda atom: self._atom_step(atom, letter))
             self._form_cache[key] = found
         return found
 

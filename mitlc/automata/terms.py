@@ -18,7 +18,7 @@ tighter one).
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TypeAlias
 
@@ -178,6 +178,20 @@ class TermStore:
             found = self.form(self._absorb(cubes))
             self._and_cache[key] = found
         return found
+
+    def substitute(self, form: int, replace: Callable[[int], int]) -> int:
+        """``form`` with every atom replaced by the form ``replace(atom)``."""
+        result = self.false
+        for cube in self.forms[form]:
+            conjunction = self.true
+            for atom in cube:
+                conjunction = self.and_(conjunction, replace(atom))
+                if conjunction == self.false:
+                    break
+            result = self.or_(result, conjunction)
+            if result == self.true:
+                break
+        return result
 
     def all_of(self, forms: Iterable[int]) -> int:
         """The conjunction of several forms."""
