@@ -1,0 +1,94 @@
+"""The product in Storm's explicit DRN format, for checking mitlc against Storm.
+
+State labels: ``init``; ``acc0`` … on the states whose world-action choices are in that
+acceptance set (the marks of a product transition depend only on its source, so this
+state-based reading accepts the same runs; jumps never return to their source); ``satisfied``
+and ``violated`` on the two absorbing states. Only states reachable from the initial state are
+written (Storm's LTL checker fails on labelled unreachable states), numbered in product order.
+"""
+
+from __future__ import annotations
+
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+
+
+def reachable(product: Product) -> list[int]:
+    """The product states reachable from the initial state, in increasing order."""
+    t = product.transitions
+    seen = {product.initial}
+    stack = [product.initial]
+    while stack:
+        x = stack.pop()
+        for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):
+            for y in t.targets[int(t.indptr[c]) : int(t.indptr[c + 1])].tolist():
+                if y not in seen:
+                    seen.add(y)
+                    stack.append(y)
+    return sorted(seen)
+
+
+def to_drn(product: Product) -> str:
+    """The DRN text of ``product`` (its reachable part)."""
+    states = reachable(product)
+    number = {x: i for i, x in enumerate(states)}
+    choices = sum(int(product.choice_ptr[x + 1] - product.choice_ptr[x]) for x in states)
+    lines = [
+        "// mitlc product",
+        "@type: MDP",
+        "@parameters",
+        "",
+        "@reward_models",
+        "",
+        "@nr_states",
+        str(len(states)),
+        "@nr_choices",
+        str(choices),
+        "@model",
+    ]
+    t = product.transitions
+    for x in states:
+        lo, hi = int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])
+        marks = 0
+        for c in range(lo, hi):
+            if product.action[c] >= 0:
+                marks |= int(product.marks[c])
+        labels = ["init"] if x == product.initial else []
+        labels += [f"acc{k}" for k in range(product.num_sets) if marks >> k & 1]
+        labels += ["satisfied"] if x == SATISFIED else []
+        labels += ["violated"] if x == VIOLATED else []
+        head = f"state {number[x]}"
+        lines.append(f"{head} " + " ".join(labels) if labels else head)
+        for index, c in enumerate(range(lo, hi)):
+            lines.append(f"\taction {index}")
+            for j in range(int(t.indptr[c]), int(t.indptr[c + 1])):
+                lines.append(f"\t\t{number[int(t.targets[j])]} : {float(t.probs[j])!r}")
+    return "\n".join(lines) + "\n"
+
+
+def labels_present(product: Product) -> set[str]:
+    """The labels :func:`to_drn` writes (Storm rejects a property naming any other)."""
+    present = {"init"}
+    for x in reachable(product):
+        present |= {"satisfied"} if x == SATISFIED else set()
+        present |= {"violated"} if x == VIOLATED else set()
+        for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):
+            if product.action[c] >= 0:
+                present |= {f"acc{k}" for k in range(product.num_sets) if product.marks[c] >> k & 1}
+    return present
+
+
+def storm_label(product: Product, name: str) -> str:
+    """``"name"`` in a Storm property, or ``false`` when no reachable state has the label."""
+    return f'"{name}"' if name in labels_present(product) else "false"
+
+
+def storm_property(product: Product) -> str:
+    """Storm's property for the maximal probability of satisfying the formula (a constant one
+    when a label it needs is on no reachable state: Storm rejects unknown labels)."""
+    present = labels_present(product)
+    if product.num_sets == 0:
+        return 'Pmax=? [G !"violated"]' if "violated" in present else "Pmax=? [G true]"
+    names = [f"acc{k}" for k in range(product.num_sets)]
+    if not set(names) <= present:
+        return "Pmax=? [F false]"
+    return "Pmax=? [" + " & ".join(f'(G F "{name}")' for name in names) + "]"

@@ -1,0 +1,174 @@
+"""Exact maximal probabilities on a product MDP, and the policies that achieve them.
+
+* ``pmax``: the maximal probability of satisfying the formula, i.e. of reaching an accepting
+  maximal end component (:mod:`mitlc.check.mec`). States that cannot reach one are 0; value
+  iteration gives a first policy, choosing among the optimal choices one that moves closer to
+  the target (so no optimal choice loops forever away from it); policy iteration then solves
+  each policy's Markov chain exactly (sparse LU) until no choice improves.
+* ``pmax_horizon``: the maximal probability of the episode's success within ``H`` steps (never
+  violated, and satisfied or a round of all acceptance sets completed), by backward induction
+  over the product and the set of acceptance sets seen so far. Epsilon jumps take no step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix, identity
+from scipy.sparse.linalg import spsolve
+
+from mitlc.check.mec import accepting_states
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+
+TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True, slots=True)
+class Solution:
+    """Values per product state and an optimal memoryless policy (a choice per state)."""
+
+    values: FloatArray
+    policy: IntArray
+
+
+def _choice_matrix(product: Product) -> csr_matrix:
+    t = product.transitions
+    return csr_matrix(
+        (t.probs, t.targets, t.indptr), shape=(product.num_choices, product.num_states)
+    )
+
+
+def _best(product: Product, q_values: FloatArray) -> tuple[FloatArray, IntArray]:
+    """Per state, the largest choice value and the first choice that attains it."""
+    ptr = product.choice_ptr
+    values = np.maximum.reduceat(q_values, ptr[:-1])
+    sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
+    candidates = np.flatnonzero(q_values >= values[sources] - TOLERANCE)
+    first = np.full(product.num_states, product.num_choices, dtype=np.int64)
+    np.minimum.at(first, sources[candidates], candidates)
+    return values, first
+
+
+def _reach_policy(
+    product: Product, matrix: csr_matrix, values: FloatArray, target: BoolArray
+) -> IntArray:
+    """Among the optimal choices, one per state that makes progress towards ``target``."""
+    ptr = product.choice_ptr
+    sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
+    q_values = matrix @ values
+    optimal = q_values >= values[sources] - 1e-9
+    policy = np.array([int(ptr[x]) for x in range(product.num_states)], dtype=np.int64)
+    done = target.copy()
+    t = product.transitions
+    changed = True
+    while changed:
+        changed = False
+        for c in np.flatnonzero(optimal & ~done[sources]).tolist():
+            x = int(sources[c])
+            if done[x]:
+                continue
+            lo, hi = int(t.indptr[c]), int(t.indptr[c + 1])
+            if done[t.targets[lo:hi]].any():
+                policy[x] = c
+                done[x] = True
+                changed = True
+    return policy
+
+
+def _evaluate(
+    product: Product, matrix: csr_matrix, policy: IntArray, target: BoolArray, zero: BoolArray
+) -> FloatArray:
+    """The exact reachability probabilities of ``target`` under ``policy``."""
+    free = ~target & ~zero
+    chain = matrix[policy]
+    values = target.astype(np.float64)
+    index = np.flatnonzero(free)
+    if len(index):
+        sub = chain[index][:, index]
+        rhs = np.asarray(chain[index][:, np.flatnonzero(target)].sum(axis=1)).ravel()
+        values[index] = spsolve((identity(len(index), format="csc") - sub).tocsc(), rhs)
+    return values
+
+
+def max_reach(product: Product, target: BoolArray) -> Solution:
+    """The maximal probability of reaching ``target`` from every state, and a policy for it."""
+    matrix = _choice_matrix(product)
+    can_reach = _backward_reach(product, target)
+    zero = ~can_reach
+    values = target.astype(np.float64)
+    for _ in range(100_000):
+        q_values = matrix @ values
+        new, _ = _best(product, q_values)
+        new = np.where(target, 1.0, np.where(zero, 0.0, new))
+        if np.max(np.abs(new - values)) < TOLERANCE:
+            values = new
+            break
+        values = new
+    policy = _reach_policy(product, matrix, values, target)
+    for _ in range(100):
+        values = _evaluate(product, matrix, policy, target, zero)
+        q_values = matrix @ values
+        best, choice = _best(product, q_values)
+        improve = (best > values + 1e-10) & ~target & ~zero
+        if not improve.any():
+            break
+        policy = np.where(improve, choice, policy)
+    return Solution(values, policy)
+
+
+def _backward_reach(product: Product, target: BoolArray) -> BoolArray:
+    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
+    per_choice = np.diff(product.transitions.indptr)
+    edge_source = np.repeat(sources, per_choice)
+    edge_target = product.transitions.targets
+    reached = target.copy()
+    while True:
+        grow = np.zeros_like(reached)
+        grow[edge_source[reached[edge_target]]] = True
+        new = reached | grow
+        if np.array_equal(new, reached):
+            return reached
+        reached = new
+
+
+def pmax(product: Product) -> Solution:
+    """The maximal probability of satisfying the formula (accepting MECs, then reachability)."""
+    return max_reach(product, accepting_states(product))
+
+
+def pmax_horizon(product: Product, horizon: int) -> tuple[float, list[FloatArray]]:
+    """The maximal probability of success within ``horizon`` steps from the initial state, and
+    the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen)."""
+    all_sets = (1 << product.num_sets) - 1
+    n = product.num_states
+    matrix = _choice_matrix(product)
+    ptr = product.choice_ptr
+    jumps = np.flatnonzero(product.action < 0)
+    jump_sources = np.repeat(np.arange(n), np.diff(ptr))[jumps]
+    jump_targets = product.transitions.targets[product.transitions.indptr[jumps]]
+    values = np.zeros((all_sets + 1, n))
+    values[all_sets, :] = 1.0
+    history = [_settle(values, jump_sources, jump_targets)]
+    for _ in range(horizon):
+        step = np.full((all_sets + 1, n), -1.0)
+        for mask in range(all_sets + 1):
+            seen = mask | product.marks
+            q_values = np.full(product.num_choices, -1.0)
+            for after in np.unique(seen).tolist():
+                chosen = (seen == after) & (product.action >= 0)
+                q_values[chosen] = matrix[chosen] @ history[-1][after]
+            step[mask] = np.maximum.reduceat(q_values, ptr[:-1])
+        history.append(_settle(step, jump_sources, jump_targets))
+    return float(history[-1][0, product.initial]), history
+
+
+def _settle(values: FloatArray, jump_sources: IntArray, jump_targets: IntArray) -> FloatArray:
+    """Absorbing outcomes, then epsilon jumps (which take no step) from their sources."""
+    values = values.copy()
+    values[:, SATISFIED] = 1.0
+    values[:, VIOLATED] = 0.0
+    for source, target in zip(jump_sources.tolist(), jump_targets.tolist(), strict=True):
+        values[:, source] = np.maximum(values[:, source], values[:, target])
+    return values

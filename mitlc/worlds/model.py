@@ -1,0 +1,105 @@
+"""The validated world: an MDP (or a POMDP) on a grid, as plain immutable arrays.
+
+States are the free cells of the grid, numbered row by row (``cells[s] = (row, col)``). The
+transition relation is sparse, in compressed rows: the successors of state ``s`` under action
+``a`` are ``next_states[indptr[r]:indptr[r + 1]]`` with probabilities ``probs[...]``, where
+``r = s * num_actions + a``. Labels are observable: ``letters[s]`` is the set of propositions
+true in state ``s``, as the letter index over ``propositions``
+(``sum(1 << i for each true propositions[i])``). A POMDP adds an observation distribution per
+state, in the same compressed-row form over observation ids.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+IntArray = npt.NDArray[np.int64]
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True, slots=True)
+class Sparse:
+    """Compressed rows of probability distributions: row ``r`` is
+    ``{targets[i]: probs[i] for i in range(indptr[r], indptr[r + 1])}``, targets increasing."""
+
+    indptr: IntArray
+    targets: IntArray
+    probs: FloatArray
+
+    @property
+    def num_rows(self) -> int:
+        """The number of rows."""
+        return len(self.indptr) - 1
+
+    def row(self, r: int) -> tuple[IntArray, FloatArray]:
+        """The targets and probabilities of row ``r``."""
+        lo, hi = int(self.indptr[r]), int(self.indptr[r + 1])
+        return self.targets[lo:hi], self.probs[lo:hi]
+
+
+@dataclass(frozen=True, slots=True)
+class Observations:
+    """A POMDP's observation model: ``model.row(s)`` is the distribution of what the agent
+    observes in state ``s``, over the ids of ``names``."""
+
+    names: tuple[str, ...]
+    model: Sparse
+
+
+@dataclass(frozen=True, slots=True)
+class Rewards:
+    """Reward terms: per acceptance mark, on satisfied, on violated, per non-stay move."""
+
+    accept: float = 100.0
+    satisfied: float = 100.0
+    violated: float = 0.0
+    move: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class World:
+    """A grid world with its task (see the module docstring)."""
+
+    name: str
+    rows: int
+    cols: int
+    cells: tuple[tuple[int, int], ...]
+    actions: tuple[str, ...]
+    start: int
+    transitions: Sparse
+    """Row ``s * len(actions) + a``: the distribution of the next state."""
+    propositions: tuple[str, ...]
+    letters: IntArray
+    """``letters[s]``: the letter (index) labelling state ``s``."""
+    spec: str
+    """The task: a formula's text."""
+    spec_source: str
+    """Where the task came from: a spec file's path, or ``<inline>``."""
+    horizon: int
+    discount: float
+    rewards: Rewards = field(default_factory=Rewards)
+    observations: Observations | None = None
+    """``None`` for an MDP."""
+
+    @property
+    def num_states(self) -> int:
+        """The number of free cells."""
+        return len(self.cells)
+
+    @property
+    def num_actions(self) -> int:
+        """The number of actions."""
+        return len(self.actions)
+
+    @property
+    def is_pomdp(self) -> bool:
+        """Whether the agent sees an observation rather than its cell."""
+        return self.observations is not None
+
+    def state_of(self, cell: tuple[int, int]) -> int:
+        """The state of a free cell."""
+        return self.cells.index(cell)

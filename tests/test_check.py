@@ -1,0 +1,132 @@
+"""The exact checker against Storm on random small MDPs and random specs."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mitlc.automata import translate
+from mitlc.check.drn import storm_label, storm_property, to_drn
+from mitlc.check.solve import pmax, pmax_horizon
+from mitlc.product.explicit import SATISFIED, VIOLATED, build_product
+from mitlc.syntax import ast, atoms, parse, to_text
+from mitlc.worlds.model import Sparse, World
+from tests.strategies import random_formula
+
+stormpy = pytest.importorskip("stormpy")
+
+
+def random_world(rng: random.Random, spec: str) -> World:
+    """A random MDP: 3-7 states, 2-3 actions, 1-3 successors a row, random labels."""
+    n, num_actions = rng.randint(3, 7), rng.randint(2, 3)
+    props = atoms(parse(spec))
+    indptr, targets, probs = [0], [], []
+    for _ in range(n * num_actions):
+        succ = sorted(rng.sample(range(n), rng.randint(1, min(3, n))))
+        weights = [rng.randint(1, 4) for _ in succ]
+        targets += succ
+        probs += [w / sum(weights) for w in weights]
+        indptr.append(len(targets))
+    letters = np.array([rng.randrange(1 << len(props)) for _ in range(n)], dtype=np.int64)
+    return World(
+        name="random",
+        rows=1,
+        cols=n,
+        cells=tuple((0, c) for c in range(n)),
+        actions=tuple(f"a{i}" for i in range(num_actions)),
+        start=0,
+        transitions=Sparse(np.array(indptr), np.array(targets), np.array(probs)),
+        propositions=props,
+        letters=letters,
+        spec=spec,
+        spec_source="<inline>",
+        horizon=8,
+        discount=0.99,
+    )
+
+
+def storm_value(drn: str, prop: str, tmp: Path) -> float:
+    path = tmp / "product.drn"
+    path.write_text(drn, encoding="utf-8")
+    model = stormpy.build_model_from_drn(str(path))
+    result = stormpy.model_checking(model, stormpy.parse_properties(prop)[0])
+    return float(result.get_value_vector()[model.initial_states[0]])
+
+
+def formulas(seed: int, count: int) -> list[ast.Formula]:
+    rng = random.Random(seed)
+    out = [
+        parse("(!a U[2,4] a) & (!b U[4,6] b)"),
+        parse("G F a"),
+        parse("F G a"),
+        parse("G (a -> F b) & F G !b"),
+        parse("G F a | F G b"),
+    ]
+    while len(out) < count:
+        f = random_formula(
+            rng, rng.randint(1, 4), ["a", "b"], bounded=rng.random() < 0.3, max_bound=3
+        )
+        if atoms(f):
+            out.append(f)
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_pmax_agrees_with_storm(seed: int, tmp_path: Path) -> None:
+    rng = random.Random(100 + seed)
+    checked = 0
+    for formula in formulas(seed, 20):
+        automaton = translate(formula)
+        world = random_world(rng, to_text(formula))
+        product = build_product(world, automaton)
+        mine = float(pmax(product).values[product.initial])
+        theirs = storm_value(to_drn(product), storm_property(product), tmp_path)
+        assert abs(mine - theirs) < 1e-6, (to_text(formula), mine, theirs)
+        checked += 1
+    assert checked == 20
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_pmax_horizon_agrees_with_storm(seed: int, tmp_path: Path) -> None:
+    """Without jumps, success within H is never violated (0 sets) or satisfied (co-safety)."""
+    rng = random.Random(200 + seed)
+    compared = 0
+    for formula in formulas(seed, 40):
+        automaton = translate(formula)
+        if automaton.epsilon or automaton.num_sets > 1:
+            continue
+        world = random_world(rng, to_text(formula))
+        product = build_product(world, automaton)
+        horizon = rng.randint(0, 8)
+        mine, _ = pmax_horizon(product, horizon)
+        if automaton.num_sets == 0:
+            bad = storm_label(product, "violated")
+            theirs = 1 - storm_value(to_drn(product), f"Pmin=? [F<={horizon} {bad}]", tmp_path)
+        elif all(m == 0 or x == SATISFIED for x, m in _state_marks(product)):
+            good = storm_label(product, "satisfied")
+            theirs = storm_value(to_drn(product), f"Pmax=? [F<={horizon} {good}]", tmp_path)
+        else:
+            continue
+        assert abs(mine - theirs) < 1e-9, (to_text(formula), horizon, mine, theirs)
+        compared += 1
+    assert compared >= 15
+
+
+def _state_marks(product: object) -> list[tuple[int, int]]:
+    p = product
+    return [
+        (x, int(np.bitwise_or.reduce(p.marks[p.choice_ptr[x] : p.choice_ptr[x + 1]])))  # type: ignore[attr-defined]
+        for x in range(p.num_states)  # type: ignore[attr-defined]
+    ]
+
+
+def test_absorbing_states_and_policy_follow_the_world() -> None:
+    world = random_world(random.Random(9), "F[0,2] a")
+    product = build_product(world, translate(parse("F[0,2] a")))
+    assert product.world_state[VIOLATED] == -1 and product.world_state[SATISFIED] == -1
+    solution = pmax(product)
+    assert solution.values.min() >= 0.0 and solution.values.max() <= 1.0 + 1e-12
+    assert solution.values[SATISFIED] == 1.0 and solution.values[VIOLATED] == 0.0
