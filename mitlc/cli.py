@@ -247,6 +247,64 @@ def monitor(
             typer.echo(f"{step:>5}  {verdict:<9}  {'{' + ', '.join(true) + '}'}")
 
 
+@app.command(name="check")
+@_reports_errors
+def check_command(
+    world_file: Annotated[Path, typer.Argument(metavar="WORLD", help="A world file (YAML).")],
+    spec: Annotated[
+        str | None, typer.Option("--spec", help="A spec file instead of the world's own task.")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
+    policy: Annotated[
+        Path | None, typer.Option("--policy", help="Write the optimal policy (JSON) here.")
+    ] = None,
+    export_drn: Annotated[
+        Path | None, typer.Option("--export-drn", help="Write the product in Storm's DRN format.")
+    ] = None,
+    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+) -> None:
+    """Check a world exactly: the best probability of doing its task, and a policy for it."""
+    from mitlc.check import check
+    from mitlc.check.drn import to_drn
+    from mitlc.worlds import load_world
+
+    world = load_world(world_file)
+    formula = load_formula(spec, None) if spec is not None else parse(world.spec, world.spec_source)
+    digital = compile_formula(formula, max_states=max_states).digital
+    if world.is_pomdp:
+        typer.echo(
+            "note: a POMDP world; the values below are the fully observable upper bounds",
+            err=True,
+        )
+    report = check(world, digital)
+    if export_drn is not None:
+        write_atomically(export_drn, to_drn(report.product).encode("utf-8"))
+    if policy is not None:
+        text = _json_dumps(report.policy_data(world)) + "\n"
+        write_atomically(policy, text.encode("utf-8"))
+    summary = report.summary()
+    if as_json:
+        typer.echo(_json_dumps(summary))
+        return
+    width = max(len(k) for k in summary)
+    for key, value in summary.items():
+        shown = f"{value:.6f}" if isinstance(value, float) else str(value)
+        typer.echo(f"{key:<{width}}  {shown}")
+
+
+@app.command(name="schema")
+@_reports_errors
+def schema_command(
+    kind: Annotated[str, typer.Argument(help="Which schema: 'world'.")] = "world",
+) -> None:
+    """Print the JSON schema of world files, for editors."""
+    if kind != "world":
+        raise UsageError(f"mitlc: unknown schema {kind!r}; the one schema is 'world'")
+    from mitlc.worlds import world_json_schema
+
+    typer.echo(_json_dumps(world_json_schema()))
+
+
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"mitlc {__version__}")

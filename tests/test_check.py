@@ -130,3 +130,58 @@ def test_absorbing_states_and_policy_follow_the_world() -> None:
     solution = pmax(product)
     assert solution.values.min() >= 0.0 and solution.values.max() <= 1.0 + 1e-12
     assert solution.values[SATISFIED] == 1.0 and solution.values[VIOLATED] == 0.0
+
+
+PAPER_WORLDS = ["case1", "case1-cost", "case2", "case3-office"]
+
+
+@pytest.mark.parametrize("name", PAPER_WORLDS)
+def test_paper_worlds_agree_with_storm(name: str, tmp_path: Path) -> None:
+    from mitlc.check import check
+    from mitlc.worlds import load_world
+    from tests.conftest import ROOT
+
+    world = load_world(ROOT / "specs" / "paper" / f"{name}.yaml")
+    automaton = translate(parse(world.spec))
+    report = check(world, automaton)
+    drn = to_drn(report.product)
+    theirs = storm_value(drn, storm_property(report.product), tmp_path)
+    assert abs(report.pmax - theirs) < 1e-6, (name, report.pmax, theirs)
+    h = world.horizon
+    if automaton.num_sets == 0:
+        bad = storm_label(report.product, "violated")
+        within = 1 - storm_value(drn, f"Pmin=? [F<={h} {bad}]", tmp_path)
+    else:
+        within = storm_value(drn, f'Pmax=? [F<={h} "satisfied"]', tmp_path)
+    assert abs(report.pmax_horizon - within) < 1e-9, (name, report.pmax_horizon, within)
+    assert 0.9 < report.pmax <= 1.0
+
+
+def test_check_command(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+    from tests.conftest import ROOT
+
+    world = str(ROOT / "specs" / "paper" / "case1.yaml")
+    runner = CliRunner()
+    drn, policy = tmp_path / "p.drn", tmp_path / "policy.json"
+    result = runner.invoke(
+        app, ["check", world, "--json", "--export-drn", str(drn), "--policy", str(policy)]
+    )
+    assert result.exit_code == 0, result.output
+    import json
+
+    report = json.loads(result.output)
+    assert {"product_states", "product_transitions", "pmax", "pmax_horizon", "seconds"} <= set(
+        report
+    )
+    assert drn.read_text(encoding="utf-8").startswith("// mitlc product")
+    rows = json.loads(policy.read_text(encoding="utf-8"))
+    assert len(rows) == report["product_states"] - 2
+    other = runner.invoke(
+        app, ["check", world, "--spec", str(ROOT / "specs/paper/case1-literal.mitl")]
+    )
+    assert other.exit_code == 0 and "pmax" in other.output
+    missing = runner.invoke(app, ["check", str(tmp_path / "nope.yaml")])
+    assert missing.exit_code == 1 and "Traceback" not in missing.output

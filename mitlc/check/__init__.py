@@ -1,0 +1,90 @@
+"""Exact checking of a world against its task: ``check(world, automaton) -> CheckReport``."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from mitlc.automata.digital import DigitalAutomaton
+from mitlc.check.solve import Solution, pmax, pmax_horizon
+from mitlc.product.explicit import Product, build_product
+from mitlc.worlds.model import World
+
+
+@dataclass(frozen=True, slots=True)
+class CheckReport:
+    """What ``mitlc check`` reports, and the optimal memoryless policy for ``pmax``."""
+
+    world: str
+    spec: str
+    product: Product
+    pmax: float
+    pmax_horizon: float
+    horizon: int
+    seconds: float
+    solution: Solution
+
+    @property
+    def product_states(self) -> int:
+        """Reachable product states (the absorbing violated and satisfied ones included)."""
+        return self.product.num_states
+
+    @property
+    def product_transitions(self) -> int:
+        """Non-zero transition probabilities of the product."""
+        return self.product.num_transitions
+
+    def summary(self) -> dict[str, Any]:
+        """The report as JSON-ready data."""
+        return {
+            "world": self.world,
+            "spec": self.spec,
+            "product_states": self.product_states,
+            "product_choices": self.product.num_choices,
+            "product_transitions": self.product_transitions,
+            "acceptance_sets": self.product.num_sets,
+            "pmax": self.pmax,
+            "pmax_horizon": self.pmax_horizon,
+            "horizon": self.horizon,
+            "seconds": round(self.seconds, 6),
+        }
+
+    def policy_data(self, world: World) -> list[dict[str, Any]]:
+        """The optimal policy: for each product state, the world cell, automaton state and the
+        action (a world action's name, or ``jump:q`` for an epsilon jump)."""
+        rows = []
+        product = self.product
+        for x in range(product.num_states):
+            s = int(product.world_state[x])
+            if s < 0:
+                continue
+            choice = int(self.solution.policy[x])
+            action = int(product.action[choice])
+            rows.append(
+                {
+                    "cell": list(world.cells[s]),
+                    "automaton_state": int(product.automaton_state[x]),
+                    "action": world.actions[action] if action >= 0 else f"jump:{-1 - action}",
+                    "value": float(self.solution.values[x]),
+                }
+            )
+        return rows
+
+
+def check(world: World, automaton: DigitalAutomaton) -> CheckReport:
+    """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy."""
+    start = time.perf_counter()
+    product = build_product(world, automaton)
+    solution = pmax(product)
+    within, _ = pmax_horizon(product, world.horizon)
+    return CheckReport(
+        world=world.name,
+        spec=automaton.formula,
+        product=product,
+        pmax=float(solution.values[product.initial]),
+        pmax_horizon=within,
+        horizon=world.horizon,
+        seconds=time.perf_counter() - start,
+        solution=solution,
+    )
