@@ -1,0 +1,19 @@
+"""Worlds: a YAML file declaring a grid MDP or POMDP and its task, validated into a
+:class:`World` of plain arrays (see ``DESIGN.md``, "Worlds (YAML)")."""
+
+from mitlc.worlds.load import Problem, WorldError, load_world, read_world_file
+from mitlc.worlds.model import Observations, Rewards, Sparse, World
+from mitlc.worlds.schema import WorldFile, world_json_schema
+
+__all__ = [
+    "Observations",
+    "Problem",
+    "Rewards",
+    "Sparse",
+    "World",
+    "WorldError",
+    "WorldFile",
+    "load_world",
+    "read_world_file",
+    "world_json_schema",
+]

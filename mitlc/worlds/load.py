@@ -1,0 +1,316 @@
+"""YAML to a validated :class:`~mitlc.worlds.model.World`.
+
+Three passes, each reporting every problem it finds before giving up: read the YAML (syntax
+errors and duplicate keys, with line and column), check its shape with the pydantic models of
+:mod:`mitlc.worlds.schema`, then check what needs the whole file (cells inside the grid and
+free, adjacent sides, the spec and its propositions). Only then are the arrays built
+(:mod:`mitlc.worlds.grid`). Every problem names the file, the line and column, the field's path
+and the offending value: ``case1.yaml:4:13: labels.a[0]: cell [7, 2] is outside the 5x5 grid``.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from pydantic import ValidationError
+
+from mitlc.errors import MitlcError, SpecError, locate
+from mitlc.syntax import atoms, decode, parse
+from mitlc.worlds.grid import (
+    FieldPath,
+    Layout,
+    check,
+    local_pattern,
+    noisy_cell,
+    render,
+    transitions,
+)
+from mitlc.worlds.model import Observations, Rewards, World
+from mitlc.worlds.schema import MODELS, OBSERVATION_TYPES, LocalPattern, WorldFile, show
+
+
+@dataclass(frozen=True, slots=True)
+class Problem:
+    """One thing wrong with a world file: where (line and column, 0 if unknown; the field's
+    path, empty for the whole file), what, and an optional detail (a spec error's text)."""
+
+    message: str
+    path: FieldPath = ()
+    line: int = 0
+    column: int = 0
+    detail: str = ""
+
+    def render(self, filename: str) -> str:
+        """``file:line:col: path: message``, then the detail on the next lines."""
+        where = f"{filename}:{self.line}:{self.column}" if self.line else filename
+        field = f"{render(self.path)}: " if self.path else ""
+        return f"{where}: {field}{self.message}" + (f"\n{self.detail}" if self.detail else "")
+
+
+class WorldError(MitlcError):
+    """A world file that cannot be loaded; ``render()`` shows one problem per line, in the
+    order of the file."""
+
+    def __init__(self, filename: str, problems: Sequence[Problem]) -> None:
+        self.filename = filename
+        self.problems = tuple(sorted(problems, key=lambda p: (p.line, p.column)))
+        super().__init__("\n".join(p.render(filename) for p in self.problems))
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing duplicate keys (PyYAML silently keeps the last)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[str, yaml.Mark] = {}
+        for key, _ in node.value:
+            if isinstance(key, yaml.ScalarNode) and key.value != "<<":
+                if key.value in seen:
+                    first = seen[key.value]
+                    raise yaml.constructor.ConstructorError(
+                        None,
+                        None,
+                        f"duplicate key {key.value!r} (first at line {first.line + 1}, "
+                        f"column {first.column + 1})",
+                        key.start_mark,
+                    )
+                seen[key.value] = key.start_mark
+        return super().construct_mapping(node, deep=deep)
+
+
+@dataclass
+class _Source:
+    """The parsed YAML and where each path starts (its value, and its key in a mapping)."""
+
+    data: Any
+    values: dict[FieldPath, yaml.Mark]
+    keys: dict[FieldPath, yaml.Mark]
+
+    def locate(self, path: FieldPath, message: str, detail: str = "", key: bool = False) -> Problem:
+        """A problem at ``path``, at the line of the longest prefix of it in the file."""
+        for end in range(len(path), -1, -1):
+            mark = (self.keys if key else self.values).get(path[:end])
+            if mark is not None:
+                return Problem(message, path, mark.line + 1, mark.column + 1, detail)
+        return Problem(message, path, detail=detail)
+
+
+def _marks(node: yaml.Node, path: FieldPath, source: _Source, active: set[int]) -> None:
+    if id(node) in active:  # a recursive alias
+        return
+    active.add(id(node))
+    source.values[path] = node.start_mark
+    if isinstance(node, yaml.MappingNode):
+        for key, value in node.value:
+            if isinstance(key, yaml.ScalarNode):
+                source.keys[(*path, key.value)] = key.start_mark
+                _marks(value, (*path, key.value), source, active)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _marks(item, (*path, i), source, active)
+    active.discard(id(node))
+
+
+def read_yaml(path: Path, filename: str) -> _Source:
+    """Read and parse the YAML at ``path``; a :class:`WorldError` if it cannot."""
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise WorldError(
+            filename, [Problem(f"cannot read the world file: {err.strerror}")]
+        ) from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        try:
+            decode(data, filename)  # for the location of the first bad byte
+        except SpecError as err:
+            loc, message = err.location, err.message.replace("specs", "world files")
+            raise WorldError(filename, [Problem(message, (), loc.line, loc.column)]) from None
+        raise  # pragma: no cover - decode raises on what utf-8-sig refuses
+    try:
+        loader = _Loader(text)
+        try:
+            node = loader.get_single_node()
+            source = _Source(None if node is None else loader.construct_document(node), {}, {})
+        finally:
+            loader.dispose()
+    except yaml.MarkedYAMLError as err:
+        raise WorldError(filename, [_yaml_problem(err, text, filename)]) from None
+    except yaml.reader.ReaderError as err:  # a character YAML does not allow
+        loc = locate(text, err.position, filename)
+        char = err.character
+        shown = f"U+{char:04X}" if isinstance(char, int) else repr(char)
+        message = f"invalid YAML: the character {shown} is not allowed"
+        raise WorldError(filename, [Problem(message, (), loc.line, loc.column)]) from None
+    if node is not None:
+        _marks(node, (), source, set())
+    return source
+
+
+def _yaml_problem(err: yaml.MarkedYAMLError, text: str, filename: str) -> Problem:
+    mark = err.problem_mark or err.context_mark
+    line, column = (mark.line + 1, mark.column + 1) if mark else (0, 0)
+    message = f"invalid YAML: {err.problem or err.context}"
+    if err.context and err.problem and err.context_mark:
+        cm = err.context_mark
+        message += f" ({err.context} at line {cm.line + 1}, column {cm.column + 1})"
+    detail = locate(text, mark.index, filename).caret() if mark else ""
+    return Problem(message, (), line, column, detail)
+
+
+def from_pydantic(error: ValidationError) -> list[tuple[FieldPath, str, bool]]:
+    """Each error as (the field's path, a message in the file's words, whether it is about a
+    key rather than a value); union tags and ``[key]`` markers are dropped from the path."""
+    found = []
+    for item in error.errors():
+        loc, kind, ctx = item["loc"], item["type"], item.get("ctx") or {}
+        at_key = loc[-1] == "[key]"
+        path = tuple(x for i, x in enumerate(loc) if not _is_tag(loc, i) and x != "[key]")
+        if kind == "extra_forbidden":
+            fields = list(MODELS.get(tuple(map(str, loc[:-1])), WorldFile).model_fields)
+            close = difflib.get_close_matches(str(loc[-1]), fields, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else f" (known: {', '.join(fields)})"
+            found.append((path, f"unknown field{hint}", True))
+        elif kind in ("union_tag_invalid", "union_tag_not_found"):
+            tags = " or ".join(map(repr, OBSERVATION_TYPES))
+            got = show(ctx["tag"]) if "tag" in ctx else "nothing"
+            found.append(((*path, "type"), f"expected {tags}, got {got}", kind.endswith("found")))
+        else:
+            found.append((path, _message(kind, item["msg"], item.get("input"), ctx), at_key))
+    return found
+
+
+def _is_tag(loc: tuple[str | int, ...], i: int) -> bool:
+    """Whether ``loc[i]`` names a member of a union (pydantic puts it in the location)."""
+    return (
+        i == 1
+        and loc[0] in ("observation", "spec")
+        and loc[1] in (*OBSERVATION_TYPES, "path", "inline")
+    )
+
+
+def _message(kind: str, msg: str, value: object, ctx: dict[str, Any]) -> str:
+    got = show(value)
+    simple = {
+        "missing": "required field is missing",
+        "model_type": f"expected a mapping, got {got}",
+        "model_attributes_type": f"expected a mapping, got {got}",
+        "dict_type": f"expected a mapping, got {got}",
+        "list_type": f"expected a list, got {got}",
+        "string_type": f"expected a string, got {got}",
+        "invalid_key": f"expected a field name (a string), got {got}",
+    }
+    if kind in simple:
+        return simple[kind]
+    if kind == "too_short":
+        return f"expected at least {ctx['min_length']} item, got {got}"
+    if kind == "literal_error":
+        return f"expected {ctx['expected']}, got {got}"
+    return msg if "got " in msg or kind.startswith("motion_") else f"{msg}, got {got}"
+
+
+def read_world_file(path: str | Path) -> WorldFile:
+    """The validated contents of the world file at ``path`` (shape and whole-file checks),
+    ``training`` settings included; a :class:`WorldError` with every problem if it is bad."""
+    return _read(Path(path))[0]
+
+
+def _read(path: Path) -> tuple[WorldFile, Layout, _Source]:
+    filename = str(path)
+    source = read_yaml(path, filename)
+    if not isinstance(source.data, dict):
+        got = "an empty file" if source.data is None else show(source.data)
+        problem = Problem(f"expected a mapping of the world's fields, got {got}")
+        raise WorldError(filename, [source.locate((), problem.message)])
+    try:
+        world = WorldFile.model_validate(source.data)
+    except ValidationError as err:
+        problems = [source.locate(p, m, key=k) for p, m, k in from_pydantic(err)]
+        raise WorldError(filename, problems) from None
+    layout, found = check(world)
+    if found:
+        raise WorldError(filename, [source.locate(p, m) for p, m in found])
+    return world, layout, source
+
+
+def load_world(path: str | Path) -> World:
+    """Load, validate and build the world at ``path``; a :class:`WorldError` if it is bad."""
+    path = Path(path)
+    world, layout, source = _read(path)
+    spec, spec_source, propositions = _load_spec(world, path, source)
+    cells = layout.cells()
+    labelled = {p: set(world.labels.get(p, ())) for p in propositions}
+    missing = [p for p in propositions if not labelled[p]]
+    if missing:
+        known = ", ".join(sorted(world.labels)) or "none"
+        problems = [
+            source.locate(("spec",), f"proposition {p!r} labels no cell (labels: {known})")
+            for p in missing
+        ]
+        raise WorldError(str(path), problems)
+    letters = [
+        sum(1 << i for i, p in enumerate(propositions) if cell in labelled[p]) for cell in cells
+    ]
+    observations: Observations | None = None
+    if isinstance(world.observation, LocalPattern):
+        observations = local_pattern(layout)
+    elif world.observation is not None:
+        observations = noisy_cell(
+            layout, world.observation.correct, world.observation.neighbourhood
+        )
+    reward = world.reward
+    return World(
+        name=world.name or path.stem,
+        rows=layout.rows,
+        cols=layout.cols,
+        cells=cells,
+        actions=tuple(world.actions),
+        start=cells.index(world.start),
+        transitions=transitions(layout, world.actions, world.motion),
+        propositions=propositions,
+        letters=np.asarray(letters, dtype=np.int64),
+        spec=spec,
+        spec_source=spec_source,
+        horizon=world.horizon,
+        discount=world.discount,
+        rewards=Rewards(reward.accept, reward.satisfied, reward.violated, reward.move),
+        observations=observations,
+    )
+
+
+def _reason(err: OSError | ValueError) -> str:
+    return (err.strerror if isinstance(err, OSError) else None) or str(err)
+
+
+def _load_spec(world: WorldFile, path: Path, source: _Source) -> tuple[str, str, tuple[str, ...]]:
+    """The spec's text, where it came from, and its propositions (sorted)."""
+    filename = str(path)
+    if isinstance(world.spec, str):
+        spec_path = path.parent / world.spec
+        where: FieldPath = ("spec",)
+        try:
+            text = decode(spec_path.read_bytes(), str(spec_path))
+            formula = parse(text, str(spec_path))
+        except (OSError, ValueError) as err:  # ValueError: a NUL in the path
+            reason = "not found" if isinstance(err, FileNotFoundError) else _reason(err)
+            message = f"cannot read the spec file {show(world.spec)} ({spec_path}): {reason}"
+            raise WorldError(filename, [source.locate(where, message)]) from None
+        except SpecError as err:
+            problem = source.locate(
+                where, f"the spec file {show(world.spec)} does not parse", err.render()
+            )
+            raise WorldError(filename, [problem]) from None
+        return text, str(spec_path), atoms(formula)
+    text, where = world.spec.formula, ("spec", "formula")
+    try:
+        formula = parse(text, "<spec.formula>")
+    except SpecError as err:
+        problem = source.locate(where, "the formula does not parse", err.render())
+        raise WorldError(filename, [problem]) from None
+    return text, "<inline>", atoms(formula)

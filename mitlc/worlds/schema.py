@@ -1,0 +1,298 @@
+"""The world file's schema: pydantic models of the YAML, exported as a JSON schema for editors.
+
+These models check the *shape* of a world file: types, ranges, required and unknown fields.
+Checks that need the whole file (a cell inside the grid, a start that is not blocked, adjacent
+wall sides, the spec's propositions) are a separate pass, in :mod:`mitlc.worlds.load`. Every
+scalar type below raises its own error message (``expected a positive integer, got "ten"``)
+so that :func:`mitlc.worlds.load.issues_of` can show it as is.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+Action = Literal["up", "down", "left", "right", "stay"]
+ACTIONS: tuple[Action, ...] = ("up", "down", "left", "right", "stay")
+COMPASS = ("N", "W", "S", "E")
+PROPOSITION = "^(?!(true|false)$)[a-z][a-z0-9_]*$"
+"""A proposition's name, as the spec grammar reads it (``grammars/mitl.lark``, ``ATOM``)."""
+
+
+def show(value: object) -> str:
+    """A value as the world file would spell it (JSON), cut short when long."""
+    try:
+        text = json.dumps(value, ensure_ascii=False, default=str)
+    except ValueError:  # a recursive value (a YAML alias inside itself)
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _fail(expected: str, value: object) -> PydanticCustomError:
+    return PydanticCustomError(
+        "world_value", "expected {expected}, got {got}", {"expected": expected, "got": show(value)}
+    )
+
+
+def _scalar(expected: str, test: Callable[[Any], bool]) -> BeforeValidator:
+    """A validator raising ``expected ..., got ...`` for a value failing ``test``."""
+
+    def check(value: Any) -> Any:
+        if not test(value):
+            raise _fail(expected, value)
+        return value
+
+    return BeforeValidator(check)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _cell(value: object) -> object:
+    if not isinstance(value, list | tuple) or len(value) != 2 or not all(map(_is_int, value)):
+        raise _fail("a cell [row, col] of two integers", value)
+    return tuple(value)
+
+
+def _cells(value: object) -> object:
+    if isinstance(value, list) and len(value) == 2 and all(map(_is_int, value)):
+        raise _fail("a list of cells [[row, col], ...]", value)
+    return value
+
+
+def _side(value: object) -> object:
+    if isinstance(value, list | tuple) and len(value) == 2:
+        first, second = value
+        if isinstance(second, str) and second in COMPASS:
+            return (_cell(first), second)
+        if isinstance(second, list | tuple):
+            return (_cell(first), _cell(second))
+    raise _fail("a side: [[row, col], [row, col]] or [[row, col], N|W|S|E]", value)
+
+
+PositiveInt = Annotated[
+    int, Field(gt=0), _scalar("a positive integer", lambda v: _is_int(v) and v > 0)
+]
+Number = Annotated[float, _scalar("a number", _is_number)]
+Probability = Annotated[
+    float,
+    Field(ge=0, le=1),
+    _scalar("a probability (a number from 0 to 1)", lambda v: _is_number(v) and 0 <= v <= 1),
+]
+Discount = Annotated[
+    float, Field(gt=0, le=1), _scalar("a number in (0, 1]", lambda v: _is_number(v) and 0 < v <= 1)
+]
+Name = Annotated[
+    str, _scalar("a non-empty string", lambda v: isinstance(v, str) and bool(v.strip()))
+]
+Proposition = Annotated[
+    str,
+    _scalar(
+        "a proposition name (a lowercase letter, then lowercase letters, digits or _)",
+        lambda v: isinstance(v, str) and bool(re.fullmatch(PROPOSITION, v)),
+    ),
+    Field(json_schema_extra={"pattern": PROPOSITION}),
+]
+Cell = Annotated[tuple[int, int], BeforeValidator(_cell)]
+"""A cell ``[row, col]``; row 0 is the top row, column 0 the left column."""
+Cells = Annotated[list[Cell], BeforeValidator(_cells)]
+"""A list of cells (one cell alone, ``[r, c]``, is refused rather than read as two)."""
+Compass = Literal["N", "W", "S", "E"]
+Side = Annotated[tuple[Cell, Cell] | tuple[Cell, Compass], BeforeValidator(_side)]
+"""A side of a cell: two adjacent cells, or a cell and a compass side (N is up)."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Grid(_Model):
+    """The size of the grid."""
+
+    rows: PositiveInt = Field(description="The number of rows (row 0 is the top row).")
+    cols: PositiveInt = Field(description="The number of columns (column 0 is the left column).")
+
+
+class Motion(_Model):
+    """Where a move takes the robot. Give exactly one of ``sideways`` and ``spread``."""
+
+    intended: Probability = Field(description="The probability of moving the intended way.")
+    sideways: Probability | None = Field(
+        default=None,
+        description="The probability of slipping to each of the two perpendicular directions "
+        "(intended + 2 * sideways = 1). A slip that is infeasible leaves the robot in place.",
+    )
+    spread: Probability | None = Field(
+        default=None,
+        description="The probability split evenly over the other feasible directions "
+        "(not off the grid, not blocked, not through a wall or window); with none feasible, it "
+        "stays in place (intended + spread = 1).",
+    )
+
+    @model_validator(mode="after")
+    def _one_model_summing_to_one(self) -> Motion:
+        if (self.sideways is None) == (self.spread is None):
+            raise PydanticCustomError(
+                "motion_kind", "give exactly one of 'sideways' and 'spread', with 'intended'"
+            )
+        if self.sideways is not None:
+            total = self.intended + 2 * self.sideways
+            how = f"intended {show(self.intended)} + 2 * sideways {show(self.sideways)}"
+        else:
+            assert self.spread is not None
+            total = self.intended + self.spread
+            how = f"intended {show(self.intended)} + spread {show(self.spread)}"
+        if abs(total - 1) > 1e-12:
+            raise PydanticCustomError(
+                "motion_sum",
+                "probabilities sum to {total}, expected 1 ({how})",
+                {"total": show(round(total, 12)), "how": how},
+            )
+        return self
+
+
+class NoisyCell(_Model):
+    """The robot observes a cell: its own, or by mistake an adjacent free cell."""
+
+    type: Literal["noisy-cell"] = Field(description="Noisy observations of the robot's cell.")
+    correct: Probability = Field(
+        description="The probability of observing the true cell; the rest is spread evenly over "
+        "the adjacent free cells (a cell with none is observed correctly)."
+    )
+    neighbourhood: Literal[4, 8] = Field(
+        default=4, description="Adjacent cells: 4 (N, W, S, E) or 8 (with the diagonals)."
+    )
+
+
+class LocalPattern(_Model):
+    """The robot observes the kind of its cell's four sides, N, W, S, E, each one of wall
+    (grid edge, wall, blocked neighbour), hallway (open to a free cell), door or window."""
+
+    type: Literal["local-pattern"] = Field(description="Deterministic local side patterns.")
+
+
+Observation = Annotated[NoisyCell | LocalPattern, Field(discriminator="type")]
+
+
+class InlineSpec(_Model):
+    """A task written in the world file."""
+
+    formula: str = Field(description="An MITL formula over the labels' propositions.")
+
+
+def _spec_kind(value: Any) -> str | None:
+    return "path" if isinstance(value, str) else "inline" if isinstance(value, dict) else None
+
+
+SpecRef = Annotated[
+    Annotated[str, Tag("path")] | Annotated[InlineSpec, Tag("inline")],
+    Discriminator(
+        _spec_kind,
+        custom_error_type="spec_kind",
+        custom_error_message="expected a spec file's path or {formula: ...}",
+    ),
+]
+
+
+class Reward(_Model):
+    """The reward terms of an episode."""
+
+    satisfied: Number = Field(default=100.0, description="Given when the task becomes satisfied.")
+    accept: Number = Field(default=100.0, description="Given on each visit to an acceptance set.")
+    violated: Number = Field(default=0.0, description="Given when the task becomes violated.")
+    move: Number = Field(
+        default=0.0, description="Given on each step that is not 'stay' (a cost: < 0)."
+    )
+
+
+class WorldFile(_Model):
+    """A world file: a grid world (an MDP, or a POMDP with an observation model) and its task."""
+
+    name: Name | None = Field(
+        default=None, description="The world's name (default: the file's stem)."
+    )
+    grid: Grid = Field(description="The grid's size: its rows and columns.")
+    blocked: Cells = Field(
+        default_factory=list, description="Cells the robot can never be in: [row, col] each."
+    )
+    labels: dict[Proposition, Cells] = Field(
+        default_factory=dict,
+        description="For each proposition, the free cells where it holds. Every proposition of "
+        "the spec must label a cell; others are allowed and ignored.",
+    )
+    start: Cell = Field(description="The robot's first cell, [row, col].")
+    actions: list[Action] = Field(
+        default_factory=lambda: list(ACTIONS),
+        min_length=1,
+        description="The actions, in this order (default: up, down, left, right, stay). Up is "
+        "towards row 0; 'stay' is certain.",
+    )
+    motion: Motion = Field(description="The motion model of the four moves.")
+    walls: list[Side] = Field(
+        default_factory=list,
+        description="Sides the robot cannot cross: [[r, c], [r, c]] (adjacent cells) or "
+        "[[r, c], N|W|S|E]. The grid's edge is a wall already.",
+    )
+    doors: list[Side] = Field(
+        default_factory=list,
+        description="Sides with a door: the robot goes through; seen as 'door'. Must join two "
+        "free cells.",
+    )
+    windows: list[Side] = Field(
+        default_factory=list,
+        description="Sides with a window: the robot cannot cross; seen as 'window'. May be on "
+        "the grid's edge.",
+    )
+    observation: Observation | None = Field(
+        default=None,
+        description="The observation model; null (the default) for a fully observed MDP.",
+    )
+    spec: SpecRef = Field(
+        description="The task: a spec file's path, relative to this file, or {formula: ...}."
+    )
+    reward: Reward = Field(default=Reward(), description="The reward terms.")
+    horizon: PositiveInt = Field(description="The number of steps of an episode.")
+    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
+    training: dict[Any, Any] = Field(
+        default_factory=dict, description="Settings for the learners: a mapping, free-form."
+    )
+
+
+MODELS: dict[tuple[str, ...], type[BaseModel]] = {
+    (): WorldFile,
+    ("grid",): Grid,
+    ("motion",): Motion,
+    ("observation", "noisy-cell"): NoisyCell,
+    ("observation", "local-pattern"): LocalPattern,
+    ("spec", "inline"): InlineSpec,
+    ("reward",): Reward,
+}
+"""The model at each place of the file, by pydantic's error location (union tags included)."""
+OBSERVATION_TYPES = ("noisy-cell", "local-pattern")
+
+
+def world_json_schema() -> dict[str, Any]:
+    """The JSON schema of a world file (draft 2020-12), for editors and other tools."""
+    schema = WorldFile.model_json_schema()
+    schema["properties"]["labels"]["additionalProperties"] = False  # names must match the pattern
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "mitlc world"
+    return schema
