@@ -279,7 +279,12 @@ def load_world(path: str | Path) -> World:
         spec_source=spec_source,
         horizon=world.horizon,
         discount=world.discount,
-        rewards=Rewards(reward.accept, reward.satisfied, reward.violated, reward.move),
+        rewards=Rewards(
+            accept=reward.accept,
+            satisfied=reward.satisfied,
+            violated=reward.violated,
+            move=reward.move,
+        ),
         observations=observations,
     )
 

@@ -1,0 +1,92 @@
+"""Product build and solve time for growing grid worlds, beside Storm on the same exported model.
+
+    .venv/bin/python bench/check_bench.py [--sizes 10,20,50,100]
+
+For an n x n grid (a in the top-right corner, b in the bottom-left, the robot starting
+bottom-right, motion 0.8 / 0.1 sideways) with the task windows scaled with the size,
+``(!a U[n,2n] a) & (!b U[2n,4n] b)``, it times mitlc's translation, product build and exact
+solve (``pmax``), exports the product to DRN, and times Storm (stormpy: build from DRN and check
+``Pmax=? [G !"violated"]``) on it in the same run. Prints one table with the values and ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from mitlc.automata import translate
+from mitlc.check.drn import storm_property, to_drn
+from mitlc.check.solve import pmax
+from mitlc.product.explicit import build_product
+from mitlc.syntax import parse
+from mitlc.worlds import load_world
+
+
+def world_yaml(n: int) -> str:
+    return f"""
+name: grid-{n}
+grid: {{rows: {n}, cols: {n}}}
+blocked: [[{n // 2}, {n // 2}]]
+labels: {{a: [[0, {n - 1}]], b: [[{n - 1}, 0]]}}
+start: [{n - 1}, {n - 1}]
+actions: [up, down, left, right, stay]
+motion: {{intended: 0.8, sideways: 0.1}}
+observation: null
+spec: {{formula: "(!a U[{n},{2 * n}] a) & (!b U[{2 * n},{4 * n}] b)"}}
+reward: {{satisfied: 100, accept: 100, violated: 0, move: 0}}
+horizon: {4 * n + 1}
+discount: 0.99
+"""
+
+
+def storm_time(drn: str, prop: str, folder: Path) -> tuple[float, float]:
+    import stormpy
+
+    path = folder / "product.drn"
+    path.write_text(drn, encoding="utf-8")
+    start = time.perf_counter()
+    model = stormpy.build_model_from_drn(str(path))
+    built = time.perf_counter()
+    result = stormpy.model_checking(model, stormpy.parse_properties(prop)[0])
+    value = float(result.get_value_vector()[model.initial_states[0]])
+    return value, (time.perf_counter() - built, built - start)[0]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10,20,50,100")
+    args = parser.parse_args()
+    header = (
+        f"{'grid':>7} {'states':>9} {'choices':>9} {'build s':>8} {'solve s':>8} "
+        f"{'pmax':>9} {'storm s':>8} {'storm pmax':>10} {'solve/storm':>11}"
+    )
+    print(header)
+    print("-" * len(header))
+    with tempfile.TemporaryDirectory() as folder:
+        for n in (int(x) for x in args.sizes.split(",")):
+            path = Path(folder) / f"grid{n}.yaml"
+            path.write_text(world_yaml(n), encoding="utf-8")
+            world = load_world(path)
+            automaton = translate(parse(world.spec))
+            start = time.perf_counter()
+            product = build_product(world, automaton)
+            built = time.perf_counter()
+            solution = pmax(product)
+            solved = time.perf_counter()
+            mine = float(solution.values[product.initial])
+            theirs, storm_seconds = storm_time(to_drn(product), storm_property(product), Path(folder))
+            print(
+                f"{n:>3}x{n:<3} {product.num_states:>9} {product.num_choices:>9} "
+                f"{built - start:>8.2f} {solved - built:>8.2f} {mine:>9.6f} "
+                f"{storm_seconds:>8.2f} {theirs:>10.6f} {(solved - built) / storm_seconds:>11.2f}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
