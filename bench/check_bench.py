@@ -79,7 +79,9 @@ def main() -> None:
             solution = pmax(product)
             solved = time.perf_counter()
             mine = float(solution.values[product.initial])
-            theirs, storm_seconds = storm_time(to_drn(product), storm_property(product), Path(folder))
+            theirs, storm_seconds = storm_time(
+                to_drn(product), storm_property(product), Path(folder)
+            )
             print(
                 f"{n:>3}x{n:<3} {product.num_states:>9} {product.num_choices:>9} "
                 f"{built - start:>8.2f} {solved - built:>8.2f} {mine:>9.6f} "

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,26 +55,28 @@ def _best(product: Product, q_values: FloatArray) -> tuple[FloatArray, IntArray]
 def _reach_policy(
     product: Product, matrix: csr_matrix, values: FloatArray, target: BoolArray
 ) -> IntArray:
-    """Among the optimal choices, one per state that makes progress towards ``target``."""
+    """Among the optimal choices, one per state that makes progress towards ``target``: a
+    backward breadth-first search from the target over the edges of optimal choices."""
     ptr = product.choice_ptr
     sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
-    q_values = matrix @ values
-    optimal = q_values >= values[sources] - 1e-9
-    policy = np.array([int(ptr[x]) for x in range(product.num_states)], dtype=np.int64)
+    optimal = (matrix @ values) >= values[sources] - 1e-9
+    policy = ptr[:-1].copy()
     done = target.copy()
     t = product.transitions
-    changed = True
-    while changed:
-        changed = False
-        for c in np.flatnonzero(optimal & ~done[sources]).tolist():
+    edge_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
+    keep = optimal[edge_choice]
+    order = np.argsort(t.targets[keep], kind="stable")
+    by_target = edge_choice[keep][order]
+    starts = np.searchsorted(t.targets[keep][order], np.arange(product.num_states + 1))
+    queue = deque(np.flatnonzero(target).tolist())
+    while queue:
+        y = queue.popleft()
+        for c in by_target[starts[y] : starts[y + 1]].tolist():
             x = int(sources[c])
-            if done[x]:
-                continue
-            lo, hi = int(t.indptr[c]), int(t.indptr[c + 1])
-            if done[t.targets[lo:hi]].any():
-                policy[x] = c
+            if not done[x]:
                 done[x] = True
-                changed = True
+                policy[x] = c
+                queue.append(x)
     return policy
 
 
