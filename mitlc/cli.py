@@ -269,7 +269,18 @@ def check_command(
     from mitlc.worlds import load_world
 
     world = load_world(world_file)
-    formula = load_formula(spec, None) if spec is not None else parse(world.spec, world.spec_source)
+    if spec is not None:
+        from mitlc.product import relabel
+        from mitlc.worlds import read_world_file
+
+        formula = load_formula(spec, None)
+        try:
+            labels = read_world_file(world_file).labels
+            world = relabel(world, labels, to_text(formula))
+        except ValueError as err:
+            raise UsageError(f"{world_file}: the spec {spec}: {err}") from None
+    else:
+        formula = parse(world.spec, world.spec_source)
     digital = compile_formula(formula, max_states=max_states).digital
     if world.is_pomdp:
         typer.echo(

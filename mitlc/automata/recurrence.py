@@ -38,8 +38,14 @@ class Recurrence:
         return len(self.chis) + int(self.cosafety_set_needed)
 
     def start(self, store: TermStore) -> tuple[int, ...]:
-        """The forms ``(S, C, B_1, N_1, ..., B_n, N_n)`` of the initial state."""
-        return (self.safety, self.cosafety, *(store.true for _ in range(2 * len(self.chis))))
+        """The forms ``(S, C, B_1, N_1, ..., B_n, N_n)`` of the initial state.
+
+        The first batch holds the token of position 0 (``B_i = chi_i``, which ``G chi_i`` owes
+        anyway), so the first mark is earned, not given: an empty first batch would mark every
+        set on the first step, and a round would look complete before anything happened.
+        """
+        tokens = [form for chi in self.chis for form in (chi, store.true)]
+        return (self.safety, self.cosafety, *tokens)
 
     def step(
         self, progression: Progression, forms: tuple[int, ...], letter: int
