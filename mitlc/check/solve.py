@@ -4,7 +4,8 @@
   maximal end component (:mod:`mitlc.check.mec`). States that cannot reach one are 0; value
   iteration gives a first policy, choosing among the optimal choices one that moves closer to
   the target (so no optimal choice loops forever away from it); policy iteration then solves
-  each policy's Markov chain exactly (sparse LU) until no choice improves.
+  each policy's Markov chain (sparse LU, or iteration to 1e-15 for large chains) until no
+  choice improves.
 * ``pmax_horizon``: the maximal probability of the episode's success within ``H`` steps (never
   violated, and satisfied or a round of all acceptance sets completed), by backward induction
   over the product and the set of acceptance sets seen so far. Epsilon jumps take no step.
@@ -89,10 +90,29 @@ def _evaluate(
     values = target.astype(np.float64)
     index = np.flatnonzero(free)
     if len(index):
-        sub = chain[index][:, index]
+        sub = chain[index][:, index].tocsr()
         rhs = np.asarray(chain[index][:, np.flatnonzero(target)].sum(axis=1)).ravel()
-        values[index] = spsolve((identity(len(index), format="csc") - sub).tocsc(), rhs)
+        values[index] = _solve_chain(sub, rhs)
     return values
+
+
+DIRECT_LIMIT = 20_000
+"""Above this many unknowns, a policy's chain is first solved by iteration (products of
+time-bounded tasks are nearly acyclic, so it converges in about as many sweeps as the horizon);
+sparse LU is the fallback when it does not converge."""
+
+
+def _solve_chain(sub: csr_matrix, rhs: FloatArray) -> FloatArray:
+    """The solution ``v`` of ``v = sub v + rhs`` (the chain's reachability probabilities)."""
+    if len(rhs) > DIRECT_LIMIT:
+        v = rhs.copy()
+        for _ in range(20_000):
+            new = sub @ v + rhs
+            if np.max(np.abs(new - v)) < 1e-15:
+                return np.asarray(new)
+            v = new
+    identity_minus = identity(len(rhs), format="csc") - sub.tocsc()
+    return np.asarray(spsolve(identity_minus, rhs))
 
 
 def max_reach(product: Product, target: BoolArray) -> Solution:

@@ -60,82 +60,160 @@ class Product:
 
 def build_product(world: World, automaton: DigitalAutomaton) -> Product:
     """The reachable product of ``world`` and ``automaton`` (see the module docstring)."""
-    delta = np.asarray(automaton.delta, dtype=np.int64)
-    marks = np.asarray(automaton.marks, dtype=np.int64)
-    verdict = np.array([s.verdict for s in automaton.states])
-    jumps: dict[int, list[int]] = {}
-    for source, target in automaton.epsilon:
-        jumps.setdefault(source, []).append(target)
-    num_q = len(automaton.states)
-    ids = np.full(world.num_states * num_q, -1, dtype=np.int64)
-    states_w: list[int] = [-1, -1]
-    states_q: list[int] = [-1, -1]
+    return _Builder(world, automaton).build()
 
-    def intern(codes: IntArray) -> IntArray:
-        """Product ids of (s * num_q + q) codes, numbering new ones in order of first use."""
-        out = np.empty(len(codes), dtype=np.int64)
-        for i, code in enumerate(codes.tolist()):
-            q = code % num_q
-            if verdict[q] == "violated":
-                out[i] = VIOLATED
-            elif verdict[q] == "satisfied":
-                out[i] = SATISFIED
-            else:
-                if ids[code] < 0:
-                    ids[code] = len(states_w)
-                    states_w.append(code // num_q)
-                    states_q.append(q)
-                out[i] = ids[code]
-        return out
 
-    initial = int(intern(np.array([world.start * num_q + automaton.initial]))[0])
-    all_sets = (1 << automaton.num_sets) - 1
-    rows: list[tuple[int, FloatArray, IntArray]] = []  # per choice: (action, probs, targets)
-    choice_ptr, choice_marks = [0], []
-    x = 0
-    while x < len(states_w):
-        if x in (VIOLATED, SATISFIED):
-            rows.append((0, np.ones(1), np.array([x])))
-            choice_marks.append(all_sets if x == SATISFIED else 0)
-        else:
-            s, q = states_w[x], states_q[x]
-            letter = int(world.letters[s])
-            q_next = int(delta[q, letter])
+class _Builder:
+    """Breadth-first exploration, one frontier (all states of a level) at a time in numpy."""
+
+    def __init__(self, world: World, automaton: DigitalAutomaton) -> None:
+        self.world = world
+        self.num_q = len(automaton.states)
+        self.delta = np.asarray(automaton.delta, dtype=np.int64)
+        self.marks = np.asarray(automaton.marks, dtype=np.int64)
+        self.num_sets = automaton.num_sets
+        kinds = {"pending": 0, "violated": 1, "satisfied": 2}
+        self.verdict = np.array([kinds[s.verdict] for s in automaton.states], dtype=np.int64)
+        jumps = sorted(automaton.epsilon)
+        self.jump_ptr = np.searchsorted(
+            np.array([j[0] for j in jumps], dtype=np.int64), np.arange(self.num_q + 1)
+        )
+        self.jump_target = np.array([j[1] for j in jumps], dtype=np.int64)
+        self.ids = np.full(world.num_states * self.num_q, -1, dtype=np.int64)
+        self.codes: list[IntArray] = [np.array([-1, -1], dtype=np.int64)]
+        self.count = 2
+        self.initial_code = world.start * self.num_q + automaton.initial
+
+    def intern(self, codes: IntArray) -> tuple[IntArray, IntArray]:
+        """Product ids of ``s * num_q + q`` codes (new ones numbered in order of first
+        appearance), and the new states' ids."""
+        kind = self.verdict[codes % self.num_q]
+        out = np.where(kind == 1, VIOLATED, SATISFIED).astype(np.int64)
+        pending = kind == 0
+        fresh = codes[pending][self.ids[codes[pending]] < 0]
+        unique, first = np.unique(fresh, return_index=True)
+        new_codes = unique[np.argsort(first, kind="stable")]
+        new_ids = np.arange(self.count, self.count + len(new_codes), dtype=np.int64)
+        self.ids[new_codes] = new_ids
+        self.codes.append(new_codes)
+        self.count += len(new_codes)
+        out[pending] = self.ids[codes[pending]]
+        return out, new_ids
+
+    def build(self) -> Product:
+        world, num_q = self.world, self.num_q
+        all_sets = (1 << self.num_sets) - 1
+        # choices: (state, order key, action, marks); edges: (choice, target, probability)
+        c_state = [np.array([VIOLATED, SATISFIED])]
+        c_key = [np.zeros(2, dtype=np.int64)]
+        c_action = [np.zeros(2, dtype=np.int64)]
+        c_marks = [np.array([0, all_sets], dtype=np.int64)]
+        e_choice = [np.array([0, 1])]
+        e_target = [np.array([VIOLATED, SATISFIED])]
+        e_prob = [np.ones(2)]
+        num_choices = 2
+        initial, frontier = self.intern(np.array([self.initial_code]))
+        code_of = np.concatenate
+        while len(frontier):
+            codes = code_of(self.codes)[frontier]
+            s, q = codes // num_q, codes % num_q
+            letter = world.letters[s]
+            q_next, marks = self.delta[q, letter], self.marks[q, letter]
+            batches = []
             for a in range(world.num_actions):
-                targets, probs = world.transitions.row(s * world.num_actions + a)
-                rows.append((a, probs, intern(targets * num_q + q_next)))
-                choice_marks.append(int(marks[q, letter]))
-            for t in jumps.get(q, ()):
-                rows.append((-1 - t, np.ones(1), intern(np.array([s * num_q + t]))))
-                choice_marks.append(0)
-        choice_ptr.append(len(rows))
-        x += 1
-    return Product(
-        world_state=np.array(states_w, dtype=np.int64),
-        automaton_state=np.array(states_q, dtype=np.int64),
-        initial=initial,
-        choice_ptr=np.array(choice_ptr, dtype=np.int64),
-        action=np.array([r[0] for r in rows], dtype=np.int64),
-        marks=np.array(choice_marks, dtype=np.int64),
-        transitions=_sparse([(r[2], r[1]) for r in rows]),
-        num_sets=automaton.num_sets,
-    )
+                rows = s * world.num_actions + a
+                lo, hi = world.transitions.indptr[rows], world.transitions.indptr[rows + 1]
+                counts = hi - lo
+                index = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+                targets = world.transitions.targets[index] * num_q + np.repeat(q_next, counts)
+                batches.append(
+                    (
+                        a,
+                        np.arange(len(frontier)),
+                        counts,
+                        targets,
+                        world.transitions.probs[index],
+                        marks,
+                    )
+                )
+            jump_counts = self.jump_ptr[q + 1] - self.jump_ptr[q]
+            if jump_counts.any():
+                owner = np.repeat(np.arange(len(frontier)), jump_counts)
+                rank = np.arange(jump_counts.sum()) - np.repeat(
+                    np.cumsum(jump_counts) - jump_counts, jump_counts
+                )
+                t = self.jump_target[self.jump_ptr[q[owner]] + rank]
+                batches.append(
+                    (
+                        -1,
+                        owner,
+                        np.ones(len(owner), dtype=np.int64),
+                        s[owner] * num_q + t,
+                        np.ones(len(owner)),
+                        np.zeros(len(owner), dtype=np.int64),
+                    )
+                )
+            new_frontier = []
+            for a, owner, counts, targets, probs, choice_marks in batches:
+                ids, new = self.intern(targets)
+                new_frontier.append(new)
+                n = len(owner)
+                choice_ids = np.arange(num_choices, num_choices + n)
+                c_state.append(frontier[owner])
+                c_marks.append(choice_marks[owner] if a >= 0 else choice_marks)
+                if a >= 0:
+                    c_key.append(np.full(n, a, dtype=np.int64))
+                    c_action.append(np.full(n, a, dtype=np.int64))
+                else:
+                    jumped = targets % num_q
+                    c_key.append(world.num_actions + jumped)
+                    c_action.append(-1 - jumped)
+                e_choice.append(np.repeat(choice_ids, counts))
+                e_target.append(ids)
+                e_prob.append(probs)
+                num_choices += n
+            frontier = np.concatenate(new_frontier)
+        return self._assemble(
+            initial[0], c_state, c_key, c_action, c_marks, e_choice, e_target, e_prob
+        )
 
-
-def _sparse(rows: list[tuple[IntArray, FloatArray]]) -> Sparse:
-    """Compressed rows with targets sorted and duplicate targets summed."""
-    indptr = [0]
-    targets: list[IntArray] = []
-    probs: list[FloatArray] = []
-    for row_targets, row_probs in rows:
-        unique, inverse = np.unique(row_targets, return_inverse=True)
-        summed = np.zeros(len(unique))
-        np.add.at(summed, inverse, row_probs)
-        targets.append(unique)
-        probs.append(summed)
-        indptr.append(indptr[-1] + len(unique))
-    return Sparse(
-        np.array(indptr, dtype=np.int64),
-        np.concatenate(targets).astype(np.int64),
-        np.concatenate(probs).astype(np.float64),
-    )
+    def _assemble(
+        self,
+        initial: np.int64,
+        c_state: list[IntArray],
+        c_key: list[IntArray],
+        c_action: list[IntArray],
+        c_marks: list[IntArray],
+        e_choice: list[IntArray],
+        e_target: list[IntArray],
+        e_prob: list[FloatArray],
+    ) -> Product:
+        """Choices sorted by state, then action (jumps last, by target); duplicate targets of a
+        choice summed; targets sorted within each choice."""
+        state, key = np.concatenate(c_state), np.concatenate(c_key)
+        order = np.lexsort((key, state))
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        choice = rank[np.concatenate(e_choice)]
+        target = np.concatenate(e_target)
+        n = self.count
+        combined = choice * n + target
+        unique, inverse = np.unique(combined, return_inverse=True)
+        probs = np.zeros(len(unique))
+        np.add.at(probs, inverse, np.concatenate(e_prob))
+        edge_choice = unique // n
+        indptr = np.searchsorted(edge_choice, np.arange(len(order) + 1))
+        sorted_state = state[order]
+        codes = np.concatenate(self.codes)
+        world_state = np.where(codes >= 0, codes // self.num_q, -1)
+        automaton_state = np.where(codes >= 0, codes % self.num_q, -1)
+        return Product(
+            world_state=world_state.astype(np.int64),
+            automaton_state=automaton_state.astype(np.int64),
+            initial=int(initial),
+            choice_ptr=np.searchsorted(sorted_state, np.arange(n + 1)).astype(np.int64),
+            action=np.concatenate(c_action)[order],
+            marks=np.concatenate(c_marks)[order],
+            transitions=Sparse(indptr.astype(np.int64), (unique % n).astype(np.int64), probs),
+            num_sets=self.num_sets,
+        )

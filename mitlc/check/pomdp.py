@@ -1,0 +1,269 @@
+"""Storm's belief-exploration bounds on the maximal probability of the task in a POMDP world.
+
+The agent observes the world's observation and the automaton state (the automaton is the
+agent's own memory, so it knows it). Storm wants the observation to be a function of the
+state, so the product POMDP splits each product state ``(s, q)`` by the observation ``o``
+emitted on entering it: its states are ``(s, q, o)`` with ``o ~ observations.model.row(s)``,
+the observation probabilities multiplied into the transitions, and the observation id is the
+pair ``(o, q)``. A fresh initial state (its own observation, one choice) samples the
+observation of the start state. The absorbing ``violated`` and ``satisfied`` states get
+observations of their own.
+
+The property is reachability, which is what Storm's POMDP checkers take: ``Pmax=? [F
+"satisfied"]``. This equals the task's probability under *every* policy when the product MDP
+has no way to meet the acceptance condition without reaching ``satisfied`` (checked with
+Storm on the fully observable product: ``Pmax=? [(G !"satisfied") & acceptance] = 0``; for
+zero acceptance sets, the acceptance is ``G !"violated"``, so the check says that no policy
+can stay pending forever with positive probability). This holds for the bounded co-safety
+tasks of the paper; otherwise :func:`pomdp_bounds` raises ``ValueError``.
+
+Bounds: ``lower`` from ``stormpy.pomdp.verify_with_belief_unfolding`` (the value of a
+finite part of the belief MDP, under-approximating the maximum), ``upper`` from
+``stormpy.pomdp.verify_with_belief_discretization`` (a Freudenthal triangulation of the
+belief space, over-approximating it). The fully observable ``pmax`` is an upper bound too
+(reported beside them; ``upper`` is ``pmax`` when the discretization is skipped).
+
+With ``horizon_success`` a step counter ``t`` (world actions count, epsilon jumps do not)
+joins the state and the observation (the agent can count steps), and the probability is of
+reaching ``satisfied`` within ``world.horizon`` steps (for zero acceptance sets: of not being
+violated within the horizon).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from mitlc.automata.digital import DigitalAutomaton
+from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
+from mitlc.check.solve import pmax
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product
+from mitlc.worlds.model import World
+
+TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
+"""The reachability property the POMDP checkers are given."""
+
+
+def unavailable_reason() -> str | None:
+    """Why Storm's POMDP analysis cannot be used here, or ``None`` when it can."""
+    try:
+        import stormpy.pomdp
+    except ImportError as error:
+        return f"stormpy.pomdp is not importable: {error}"
+    for name in ("verify_with_belief_unfolding", "verify_with_belief_discretization"):
+        if not hasattr(stormpy.pomdp, name):
+            return f"stormpy.pomdp has no {name}"
+    return None
+
+
+def to_pomdp_drn(world: World, product: Product, horizon: int | None = None) -> str:
+    """The DRN text of the product POMDP (see the module docstring), with labels ``init``,
+    ``satisfied`` and ``violated``. With ``horizon``, states carry a step counter up to it;
+    pending states at the horizon move to ``satisfied`` (zero acceptance sets: not violated
+    within the horizon is success) or to an absorbing ``timeout`` state."""
+    if world.observations is None:
+        raise ValueError(f"world {world.name!r} is not a POMDP")
+    obs = world.observations.model
+    states: dict[tuple[int, int, int], int] = {}
+    """``(product state, observation, step) -> POMDP state``; absorbing: observation -1."""
+    observation_ids: dict[tuple[int, int, int], int] = {}
+    """``(world observation, automaton state, step) -> observation id``."""
+    # reserved: 0 fresh initial, 1 violated, 2 satisfied, 3 timeout
+    observation_ids[(-1, -1, -1)] = 0
+    observation_ids[(-2, -2, -2)] = 1
+    observation_ids[(-3, -3, -3)] = 2
+    fixed = {VIOLATED: 1, SATISFIED: 2}
+    lines_of: dict[int, list[str]] = {}
+    order: list[tuple[int, int, int]] = []
+    sink_timeout = horizon is not None and product.num_sets > 0
+    # POMDP ids: 0 init, 1 violated, 2 satisfied, (3 timeout), then split states
+    next_id = 4 if sink_timeout else 3
+    if sink_timeout:
+        observation_ids[(-4, -4, -4)] = 3
+
+    def successors(y: int, step: int) -> list[tuple[int, float]]:
+        """The POMDP states entering product state ``y`` at ``step`` leads to, with the
+        observation probabilities."""
+        nonlocal next_id
+        if y in fixed:
+            return [(fixed[y], 1.0)]
+        s = int(product.world_state[y])
+        out = []
+        targets, probs = obs.row(s)
+        for o, p in zip(targets.tolist(), probs.tolist(), strict=True):
+            key = (y, int(o), step)
+            if key not in states:
+                states[key] = next_id
+                next_id += 1
+                order.append(key)
+            out.append((states[key], float(p)))
+        return out
+
+    t = product.transitions
+    init_choice = successors(product.initial, 0)
+    index = 0
+    while index < len(order):
+        key = order[index]
+        index += 1
+        x, o, step = key
+        q = int(product.automaton_state[x])
+        observation = observation_ids.setdefault(
+            (o, q, step if horizon is not None else 0), len(observation_ids)
+        )
+        body = [f"state {states[key]} {{{observation}}}"]
+        at_horizon = horizon is not None and step >= horizon
+        for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):
+            a = int(product.action[c])
+            body.append(f"\taction {world.actions[a] if a >= 0 else f'jump{-1 - a}'}")
+            if at_horizon:
+                body.append(f"\t\t{3 if sink_timeout else 2} : 1")
+                continue
+            after = step + 1 if (a >= 0 and horizon is not None) else step
+            merged: dict[int, float] = {}
+            for j in range(int(t.indptr[c]), int(t.indptr[c + 1])):
+                for z, p in successors(int(t.targets[j]), after):
+                    merged[z] = merged.get(z, 0.0) + float(t.probs[j]) * p
+            body += [f"\t\t{z} : {p!r}" for z, p in sorted(merged.items())]
+        lines_of[states[key]] = body
+    nr_states = next_id
+    lines_of[0] = ["state 0 {0} init", "\taction sample"] + [
+        f"\t\t{z} : {p!r}" for z, p in sorted(init_choice)
+    ]
+    lines_of[1] = ["state 1 {1} violated", "\taction stay", "\t\t1 : 1"]
+    lines_of[2] = ["state 2 {2} satisfied", "\taction stay", "\t\t2 : 1"]
+    if sink_timeout:
+        lines_of[3] = ["state 3 {3} timeout", "\taction stay", "\t\t3 : 1"]
+    choices = sum(
+        sum(1 for line in body if line.startswith("\taction")) for body in lines_of.values()
+    )
+    head = [
+        "// mitlc product POMDP",
+        "@type: POMDP",
+        "@parameters",
+        "",
+        "@reward_models",
+        "",
+        "@nr_states",
+        str(nr_states),
+        "@nr_choices",
+        str(choices),
+        "@model",
+    ]
+    body_lines = [line for i in range(nr_states) for line in lines_of[i]]
+    return "\n".join(head + body_lines) + "\n"
+
+
+def _reduction_residual(product: Product, directory: Path) -> float:
+    """The maximal probability, on the fully observable product, of meeting the acceptance
+    condition without ever reaching ``satisfied`` (0 when reachability of ``satisfied`` is
+    the task under every policy)."""
+    import stormpy
+
+    present = labels_present(product)
+    inner = storm_property(product)[len("Pmax=? [") : -1]
+    never = '(G !"satisfied")' if "satisfied" in present else "(G true)"
+    path = directory / "product.drn"
+    path.write_text(to_drn(product), encoding="utf-8")
+    model = stormpy.build_model_from_drn(str(path))
+    prop = stormpy.parse_properties(f"Pmax=? [{never} & ({inner})]")[0]
+    result = stormpy.model_checking(model, prop)
+    return float(result.get_value_vector()[model.initial_states[0]])
+
+
+def _environment(precision: str) -> Any:
+    """Storm's sound environment, its solvers stopping at the absolute ``precision``."""
+    import stormpy
+    import stormpy.environments
+
+    environment = stormpy.environments.sound()
+    for solver in (environment.solver().min_max(), environment.solver().native()):
+        solver.precision = stormpy.Rational(precision)
+        solver.relative_termination_criterion = False
+    return environment
+
+
+def pomdp_bounds(
+    world: World,
+    automaton: DigitalAutomaton,
+    *,
+    horizon_success: bool = False,
+    max_exploration_size: int | None = 100_000,
+    max_exploration_time: int | None = 30,
+    resolution: int = 2,
+    discretize: bool = True,
+    precision: str = "1/10000000000",
+) -> dict[str, Any] | None:
+    """Lower and upper bounds on the maximal probability, over observation-based policies, of
+    the task (see the module docstring), or ``None`` when Storm's POMDP analysis is
+    unavailable (:func:`unavailable_reason` says why).
+
+    The result: ``lower``, ``upper``, ``upper_discretized`` (Storm's upper bound, or
+    ``None`` when skipped), ``pmax`` (fully observable), whether each exploration
+    completed, the POMDP's size, the seconds spent, and ``method``. Exploration limits:
+    ``max_exploration_size`` beliefs and ``max_exploration_time`` seconds for the unfolding;
+    ``resolution`` for the discretization (skipped when not ``discretize``). Storm solves the
+    belief MDPs soundly to the absolute ``precision`` (a rational's text).
+    """
+    if unavailable_reason() is not None:
+        return None
+    import stormpy
+    import stormpy.io
+    import stormpy.pomdp
+
+    start = time.perf_counter()
+    product = build_product(world, automaton)
+    full = float(pmax(product).values[product.initial])
+    with tempfile.TemporaryDirectory() as tmp:
+        directory = Path(tmp)
+        residual = _reduction_residual(product, directory)
+        if residual > 1e-9:
+            raise ValueError(
+                "the task is not reachability of 'satisfied' on this product: a policy meets "
+                f"the acceptance condition without reaching it w.p. {residual}"
+            )
+        text = to_pomdp_drn(world, product, world.horizon if horizon_success else None)
+        path = directory / "pomdp.drn"
+        path.write_text(text, encoding="utf-8")
+        options = stormpy.io.DirectEncodingParserOptions()
+        options.build_choice_labeling = True
+        model = stormpy.build_model_from_drn(str(path), options=options)
+    built = time.perf_counter()
+    prop = stormpy.parse_properties(TARGET_PROPERTY)[0]
+    lower_result = stormpy.pomdp.verify_with_belief_unfolding(
+        model,
+        prop,
+        max_exploration_size=max_exploration_size,
+        max_exploration_time=max_exploration_time,
+        environment=_environment(precision),
+    )
+    unfolded = time.perf_counter()
+    upper_raw: float | None = None
+    upper_complete = False
+    if discretize:
+        upper_result = stormpy.pomdp.verify_with_belief_discretization(
+            model, prop, resolution, environment=_environment(precision)
+        )
+        upper_raw = float(upper_result.value)
+        upper_complete = bool(upper_result.statistics.completed_exploration)
+    done = time.perf_counter()
+    lower = float(lower_result.value)
+    upper = upper_raw if upper_raw is not None else full
+    return {
+        "lower": lower,
+        "upper": upper,
+        "upper_discretized": upper_raw,
+        "pmax": full,
+        "lower_complete": bool(lower_result.statistics.completed_exploration),
+        "upper_complete": upper_complete,
+        "explored_beliefs": int(lower_result.statistics.explored_beliefs),
+        "product_states": len(reachable(product)),
+        "pomdp_states": model.nr_states,
+        "pomdp_observations": model.nr_observations,
+        "seconds_build": built - start,
+        "seconds_unfolding": unfolded - built,
+        "seconds_discretization": done - unfolded,
+        "method": "stormpy.pomdp.verify_with_belief_unfolding (lower), "
+        f"verify_with_belief_discretization resolution {resolution} (upper)",
+    }
