@@ -138,7 +138,7 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
         if not improve.any():
             break
         policy = np.where(improve, choice, policy)
-    return Solution(values, policy)
+    return Solution(np.clip(values, 0.0, 1.0), policy)
 
 
 def _backward_reach(product: Product, target: BoolArray) -> BoolArray:
