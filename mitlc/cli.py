@@ -261,6 +261,10 @@ def check_command(
     export_drn: Annotated[
         Path | None, typer.Option("--export-drn", help="Write the product in Storm's DRN format.")
     ] = None,
+    export_dot: Annotated[
+        Path | None,
+        typer.Option("--export-dot", help="Draw a small product (at most 2,000 states) as DOT."),
+    ] = None,
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
@@ -290,6 +294,14 @@ def check_command(
     report = check(world, digital)
     if export_drn is not None:
         write_atomically(export_drn, to_drn(report.product).encode("utf-8"))
+    if export_dot is not None:
+        from mitlc.check.drn import to_product_dot
+
+        try:
+            dot = to_product_dot(report.product, list(world.cells), world.actions)
+        except ValueError as err:
+            raise UsageError(f"mitlc: --export-dot: {err}") from None
+        write_atomically(export_dot, dot.encode("utf-8"))
     if policy is not None:
         text = _json_dumps(report.policy_data(world)) + "\n"
         write_atomically(policy, text.encode("utf-8"))

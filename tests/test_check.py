@@ -185,3 +185,21 @@ def test_check_command(tmp_path: Path) -> None:
     assert other.exit_code == 0 and "pmax" in other.output
     missing = runner.invoke(app, ["check", str(tmp_path / "nope.yaml")])
     assert missing.exit_code == 1 and "Traceback" not in missing.output
+
+
+def test_export_dot_of_a_small_product(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from typer.testing import CliRunner
+
+    import mitlc.check.drn as drn
+    from mitlc.cli import app
+    from tests.conftest import ROOT
+
+    world = str(ROOT / "specs" / "paper" / "case1.yaml")
+    out = tmp_path / "product.dot"
+    result = CliRunner().invoke(app, ["check", world, "--export-dot", str(out)])
+    assert result.exit_code == 0, result.output
+    text = out.read_text(encoding="utf-8")
+    assert text.startswith("digraph product") and '[label="(4,4) q0", penwidth=2]' in text
+    monkeypatch.setattr(drn, "DOT_LIMIT", 10)
+    refused = CliRunner().invoke(app, ["check", world, "--export-dot", str(out)])
+    assert refused.exit_code == 1 and "too many to draw" in refused.output

@@ -92,3 +92,41 @@ def storm_property(product: Product) -> str:
     if not set(names) <= present:
         return "Pmax=? [F false]"
     return "Pmax=? [" + " & ".join(f'(G F "{name}")' for name in names) + "]"
+
+
+DOT_LIMIT = 2_000
+"""Products with more states are not drawn."""
+
+
+def to_product_dot(product: Product, cells: list[tuple[int, int]], actions: tuple[str, ...]) -> str:
+    """A DOT drawing of a small product: states ``(row,col) q``, one edge per choice and
+    target, labelled with the action (``ε→q`` for a jump) and its probability."""
+    if product.num_states > DOT_LIMIT:
+        raise ValueError(
+            f"{product.num_states} product states: too many to draw (at most {DOT_LIMIT})"
+        )
+    lines = [
+        "digraph product {",
+        "  rankdir=LR;",
+        '  node [shape=box, style=rounded, fontname="Helvetica"];',
+    ]
+    t = product.transitions
+    for x in reachable(product):
+        if x == VIOLATED:
+            label, extra = "violated", ", style=dashed"
+        elif x == SATISFIED:
+            label, extra = "satisfied", ", peripheries=2"
+        else:
+            r, c = cells[int(product.world_state[x])]
+            label, extra = f"({r},{c}) q{int(product.automaton_state[x])}", ""
+        if x == product.initial:
+            extra += ", penwidth=2"
+        lines.append(f'  s{x} [label="{label}"{extra}];')
+        for choice in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):
+            a = int(product.action[choice])
+            name = "" if product.world_state[x] < 0 else actions[a] if a >= 0 else f"ε→q{-1 - a}"
+            for j in range(int(t.indptr[choice]), int(t.indptr[choice + 1])):
+                p = float(t.probs[j])
+                lines.append(f'  s{x} -> s{int(t.targets[j])} [label="{f"{name} {p:g}".strip()}"];')
+    lines.append("}")
+    return "\n".join(lines) + "\n"
