@@ -24,6 +24,7 @@ from collections.abc import Iterable
 from typing import TypeAlias
 
 from mitlc.automata.digital import DigitalAutomaton
+from mitlc.automata.graph import strongly_connected
 from mitlc.automata.labels import label_text
 
 Edges: TypeAlias = dict[tuple[int, int], set[int]]
@@ -112,48 +113,16 @@ def _reach(edges: list[Edges], starts: Iterable[int]) -> list[int]:
 
 
 def _sccs(edges: list[Edges], states: list[int]) -> list[list[int]]:
-    """Tarjan's strongly connected components of the states, iteratively."""
-    index: dict[int, int] = {}
-    low: dict[int, int] = {}
-    stack: list[int] = []
-    on_stack: set[int] = set()
-    result: list[list[int]] = []
-    for root in states:
-        if root in index:
-            continue
-        work = [(root, iter(sorted({t for t, _ in edges[root]})))]
-        index[root] = low[root] = len(index)
-        stack.append(root)
-        on_stack.add(root)
-        while work:
-            node, successors = work[-1]
-            advanced = False
-            for t in successors:
-                if t not in index:
-                    index[t] = low[t] = len(index)
-                    stack.append(t)
-                    on_stack.add(t)
-                    work.append((t, iter(sorted({u for u, _ in edges[t]}))))
-                    advanced = True
-                    break
-                if t in on_stack:
-                    low[node] = min(low[node], index[t])
-            if advanced:
-                continue
-            work.pop()
-            if work:
-                parent = work[-1][0]
-                low[parent] = min(low[parent], low[node])
-            if low[node] == index[node]:
-                scc = []
-                while True:
-                    member = stack.pop()
-                    on_stack.discard(member)
-                    scc.append(member)
-                    if member == node:
-                        break
-                result.append(sorted(scc))
-    return result
+    """The strongly connected components of the graph restricted to ``states``."""
+    position = {state: i for i, state in enumerate(states)}
+    successors = [
+        sorted({position[t] for t, _ in edges[state] if t in position}) for state in states
+    ]
+    component = strongly_connected(successors)
+    groups: dict[int, list[int]] = {}
+    for i, c in enumerate(component):
+        groups.setdefault(c, []).append(states[i])
+    return [sorted(group) for group in groups.values()]
 
 
 def to_hoa(automaton: DigitalAutomaton, name: str | None = None) -> str:
