@@ -17,7 +17,7 @@ from typing import Annotated, Any, ParamSpec, TypeVar
 import typer
 
 from mitlc import __version__
-from mitlc.automata import DEFAULT_MAX_STATES, compile_formula
+from mitlc.automata import DEFAULT_MAX_STATES, DigitalAutomaton, compile_formula
 from mitlc.automata.artifact import from_data, to_json
 from mitlc.automata.dot import render, to_dot, write_atomically
 from mitlc.automata.hoa import to_hoa, to_hoa_stream
@@ -26,6 +26,7 @@ from mitlc.errors import MitlcError, SourceLocation, SpecError
 from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
 from mitlc.syntax.tree import tree_text
 from mitlc.traces import TraceError, read_trace, trace_columns
+from mitlc.worlds.model import World
 
 app = typer.Typer(
     name="mitlc",
@@ -265,6 +266,13 @@ def check_command(
         Path | None,
         typer.Option("--export-dot", help="Draw a small product (at most 2,000 states) as DOT."),
     ] = None,
+    pomdp_bounds: Annotated[
+        bool,
+        typer.Option(
+            "--pomdp-bounds/--no-pomdp-bounds",
+            help="For a POMDP world, add Storm's belief-exploration bounds (needs stormpy).",
+        ),
+    ] = True,
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
@@ -306,13 +314,31 @@ def check_command(
         text = _json_dumps(report.policy_data(world)) + "\n"
         write_atomically(policy, text.encode("utf-8"))
     summary = report.summary()
+    if world.is_pomdp and pomdp_bounds:
+        summary["bounds"] = _pomdp_bounds(world, digital)
     if as_json:
         typer.echo(_json_dumps(summary))
         return
     width = max(len(k) for k in summary)
     for key, value in summary.items():
         shown = f"{value:.6f}" if isinstance(value, float) else str(value)
+        if isinstance(value, dict) and "lower" in value:
+            shown = f"[{value['lower']:.6f}, {value['upper']:.6f}] ({value['method']})"
         typer.echo(f"{key:<{width}}  {shown}")
+
+
+def _pomdp_bounds(world: World, digital: DigitalAutomaton) -> dict[str, object]:
+    """Storm's lower and upper bounds of the POMDP's optimum, or why there are none."""
+    from mitlc.check.pomdp import pomdp_bounds, unavailable_reason
+
+    try:
+        found = pomdp_bounds(world, digital)
+    except ValueError as err:
+        return {"unavailable": str(err)}
+    if found is None:
+        return {"unavailable": unavailable_reason() or "stormpy.pomdp is not installed"}
+    keys = ("lower", "upper", "lower_complete", "upper_complete", "method")
+    return {k: found[k] for k in keys if k in found}
 
 
 @app.command(name="schema")

@@ -122,8 +122,7 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
     zero = ~can_reach
     values = target.astype(np.float64)
     for _ in range(100_000):
-        q_values = matrix @ values
-        new, _ = _best(product, q_values)
+        new = np.maximum.reduceat(matrix @ values, product.choice_ptr[:-1])
         new = np.where(target, 1.0, np.where(zero, 0.0, new))
         if np.max(np.abs(new - values)) < TOLERANCE:
             values = new
