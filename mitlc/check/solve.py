@@ -1,11 +1,12 @@
 """Exact maximal probabilities on a product MDP, and the policies that achieve them.
 
 * ``pmax``: the maximal probability of satisfying the formula, i.e. of reaching an accepting
-  maximal end component (:mod:`mitlc.check.mec`). States that cannot reach one are 0; value
-  iteration gives a first policy, choosing among the optimal choices one that moves closer to
-  the target (so no optimal choice loops forever away from it); policy iteration then solves
-  each policy's Markov chain (sparse LU, or iteration to 1e-15 for large chains) until no
-  choice improves.
+  maximal end component (:mod:`mitlc.check.mec`). States that cannot reach one are 0; values
+  computed component by component in topological order (:mod:`mitlc.check.topo`), then
+  checked by value iteration, give a first policy, choosing among the optimal choices one
+  that moves closer to the target (so no optimal choice loops forever away from it); policy
+  iteration then solves each policy's Markov chain (sparse LU, or iteration to 1e-15 for
+  large chains) until no choice improves.
 * ``pmax_horizon``: the maximal probability of the episode's success within ``H`` steps (never
   violated, and satisfied or a round of all acceptance sets completed), by backward induction
   over the product and the set of acceptance sets seen so far. Epsilon jumps take no step.
@@ -18,9 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import csr_matrix, identity
+from scipy.sparse.csgraph import breadth_first_order
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
+from mitlc.check.topo import topological_values
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -120,7 +123,7 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
     matrix = _choice_matrix(product)
     can_reach = _backward_reach(product, target)
     zero = ~can_reach
-    values = target.astype(np.float64)
+    values = topological_values(product, matrix, target, zero)
     for _ in range(100_000):
         new = np.maximum.reduceat(matrix @ values, product.choice_ptr[:-1])
         new = np.where(target, 1.0, np.where(zero, 0.0, new))
@@ -141,18 +144,19 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
 
 
 def _backward_reach(product: Product, target: BoolArray) -> BoolArray:
-    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
-    per_choice = np.diff(product.transitions.indptr)
-    edge_source = np.repeat(sources, per_choice)
-    edge_target = product.transitions.targets
-    reached = target.copy()
-    while True:
-        grow = np.zeros_like(reached)
-        grow[edge_source[reached[edge_target]]] = True
-        new = reached | grow
-        if np.array_equal(new, reached):
-            return reached
-        reached = new
+    """The states from which some path reaches ``target``: a breadth-first search backwards
+    from a virtual node joined to every target state."""
+    n = product.num_states
+    sources = np.repeat(np.arange(n), np.diff(product.choice_ptr))
+    edge_source = np.repeat(sources, np.diff(product.transitions.indptr))
+    goals = np.flatnonzero(target)
+    rows = np.concatenate([product.transitions.targets, np.full(len(goals), n)])
+    cols = np.concatenate([edge_source, goals])
+    backwards = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+    reached = np.zeros(n + 1, dtype=bool)
+    reached[breadth_first_order(backwards, n, directed=True, return_predecessors=False)] = True
+    result: BoolArray = reached[:n] | target
+    return result
 
 
 def pmax(product: Product) -> Solution:
