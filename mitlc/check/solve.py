@@ -124,7 +124,8 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
     can_reach = _backward_reach(product, target)
     zero = ~can_reach
     values = topological_values(product, matrix, target, zero)
-    for _ in range(100_000):
+    sweeps = 0
+    for sweeps in range(1, 100_001):  # noqa: B007 - the count says whether the seed was exact
         new = np.maximum.reduceat(matrix @ values, product.choice_ptr[:-1])
         new = np.where(target, 1.0, np.where(zero, 0.0, new))
         if np.max(np.abs(new - values)) < TOLERANCE:
@@ -132,11 +133,15 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
             break
         values = new
     policy = _reach_policy(product, matrix, values, target)
+    if sweeps == 1:
+        # The topological values are already the Bellman fixpoint reached from below, and the
+        # policy climbs to the target along optimal choices: nothing for policy iteration to do.
+        return Solution(np.clip(values, 0.0, 1.0), policy)
     for _ in range(100):
         values = _evaluate(product, matrix, policy, target, zero)
         q_values = matrix @ values
         best, choice = _best(product, q_values)
-        improve = (best > values + 1e-10) & ~target & ~zero
+        improve = (best > values + 1e-9) & ~target & ~zero
         if not improve.any():
             break
         policy = np.where(improve, choice, policy)
