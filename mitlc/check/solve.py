@@ -182,14 +182,23 @@ def pmax_horizon(product: Product, horizon: int) -> tuple[float, list[FloatArray
     values = np.zeros((all_sets + 1, n))
     values[all_sets, :] = 1.0
     history = [_settle(values, jump_sources, jump_targets)]
+    world = product.action >= 0
+    groups: list[list[tuple[IntArray, csr_matrix, int]]] = []  # per mask: (choices, rows, after)
+    for mask in range(all_sets + 1):
+        seen = mask | product.marks
+        groups.append(
+            [
+                (chosen, matrix[chosen], after)
+                for after in np.unique(seen).tolist()
+                for chosen in [np.flatnonzero((seen == after) & world)]
+            ]
+        )
     for _ in range(horizon):
         step = np.full((all_sets + 1, n), -1.0)
         for mask in range(all_sets + 1):
-            seen = mask | product.marks
             q_values = np.full(product.num_choices, -1.0)
-            for after in np.unique(seen).tolist():
-                chosen = (seen == after) & (product.action >= 0)
-                q_values[chosen] = matrix[chosen] @ history[-1][after]
+            for chosen, rows, after in groups[mask]:
+                q_values[chosen] = rows @ history[-1][after]
             step[mask] = np.maximum.reduceat(q_values, ptr[:-1])
         history.append(_settle(step, jump_sources, jump_targets))
     return float(history[-1][0, product.initial]), history
