@@ -203,3 +203,14 @@ def test_export_dot_of_a_small_product(tmp_path: Path, monkeypatch: pytest.Monke
     monkeypatch.setattr(drn, "DOT_LIMIT", 10)
     refused = CliRunner().invoke(app, ["check", world, "--export-dot", str(out)])
     assert refused.exit_code == 1 and "too many to draw" in refused.output
+
+
+def test_pmax_horizon_without_history_gives_the_same_value() -> None:
+    rng = random.Random(77)
+    for formula in formulas(7, 10):
+        world = random_world(rng, to_text(formula))
+        product = build_product(world, translate(formula))
+        full, history = pmax_horizon(product, 6)
+        last, kept = pmax_horizon(product, 6, keep_history=False)
+        assert full == last and len(history) == 7 and len(kept) == 1
+        assert np.array_equal(history[-1], kept[0])

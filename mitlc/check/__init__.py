@@ -77,7 +77,7 @@ def check(world: World, automaton: DigitalAutomaton) -> CheckReport:
     start = time.perf_counter()
     product = build_product(world, automaton)
     solution = pmax(product)
-    within, _ = pmax_horizon(product, world.horizon)
+    within, _ = pmax_horizon(product, world.horizon, keep_history=False)
     return CheckReport(
         world=world.name,
         spec=automaton.formula,

@@ -169,9 +169,13 @@ def pmax(product: Product) -> Solution:
     return max_reach(product, accepting_states(product))
 
 
-def pmax_horizon(product: Product, horizon: int) -> tuple[float, list[FloatArray]]:
+def pmax_horizon(
+    product: Product, horizon: int, *, keep_history: bool = True
+) -> tuple[float, list[FloatArray]]:
     """The maximal probability of success within ``horizon`` steps from the initial state, and
-    the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen)."""
+    the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen), all
+    ``horizon + 1`` of them (what a time-dependent policy needs), or with ``keep_history`` off
+    only the last (the memory of one table instead of ``horizon + 1``)."""
     all_sets = (1 << product.num_sets) - 1
     n = product.num_states
     matrix = _choice_matrix(product)
@@ -201,6 +205,8 @@ def pmax_horizon(product: Product, horizon: int) -> tuple[float, list[FloatArray
                 q_values[chosen] = rows @ history[-1][after]
             step[mask] = np.maximum.reduceat(q_values, ptr[:-1])
         history.append(_settle(step, jump_sources, jump_targets))
+        if not keep_history:
+            del history[:-1]
     return float(history[-1][0, product.initial]), history
 
 
