@@ -113,9 +113,8 @@ class _Builder:
         e_prob = [np.ones(2)]
         num_choices = 2
         initial, frontier = self.intern(np.array([self.initial_code]))
-        code_of = np.concatenate
+        codes = self.codes[-1]
         while len(frontier):
-            codes = code_of(self.codes)[frontier]
             s, q = codes // num_q, codes % num_q
             letter = world.letters[s]
             q_next, marks = self.delta[q, letter], self.marks[q, letter]
@@ -153,7 +152,7 @@ class _Builder:
                         np.zeros(len(owner), dtype=np.int64),
                     )
                 )
-            new_frontier = []
+            new_frontier, level_start = [], len(self.codes)
             for a, owner, counts, targets, probs, choice_marks in batches:
                 ids, new = self.intern(targets)
                 new_frontier.append(new)
@@ -173,6 +172,8 @@ class _Builder:
                 e_prob.append(probs)
                 num_choices += n
             frontier = np.concatenate(new_frontier)
+            # The new states' ids are consecutive, in the order their codes were appended.
+            codes = np.concatenate(self.codes[level_start:])
         return self._assemble(
             initial[0], c_state, c_key, c_action, c_marks, e_choice, e_target, e_prob
         )
