@@ -71,7 +71,6 @@ class _Matcher:
     by_signature: dict[tuple[object, ...], tuple[int, int, int, int]] = field(default_factory=dict)
     kept: dict[int, int] = field(default_factory=dict)
     fresh_used: bool = False
-    fresh_clock: int = -1
 
     def add(self, atom: TimedAtom, values: dict[int, int], step: int, with_operands: bool) -> None:
         kind, left, right, lo, hi, clock = atom
