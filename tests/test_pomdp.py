@@ -20,21 +20,6 @@ pytest.importorskip("stormpy.pomdp")
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def sparse(rows: list[dict[int, float]]) -> Sparse:
-    """Compressed rows of the given distributions."""
-    indptr, targets, probs = [0], [], []
-    for row in rows:
-        for target in sorted(row):
-            targets.append(target)
-            probs.append(row[target])
-        indptr.append(len(targets))
-    return Sparse(
-        np.array(indptr, dtype=np.int64),
-        np.array(targets, dtype=np.int64),
-        np.array(probs, dtype=np.float64),
-    )
-
-
 def guessing_world() -> World:
     """Start 0 moves to room 1 or room 2 w.p. 1/2 each, whatever the action. In room 1 action
     ``a0`` reaches the goal 3 and ``a1`` the trap 4; in room 2 the other way round. Room 1 always
@@ -61,7 +46,7 @@ def guessing_world() -> World:
         cells=tuple((0, c) for c in range(5)),
         actions=("a0", "a1"),
         start=0,
-        transitions=sparse(rows),
+        transitions=Sparse.from_rows(rows),
         propositions=("g",),
         letters=np.array([0, 0, 0, 1, 0], dtype=np.int64),
         spec="F g",
@@ -70,7 +55,7 @@ def guessing_world() -> World:
         discount=0.99,
         observations=Observations(
             names=("start", "x", "y", "goal", "trap"),
-            model=sparse([{0: 1.0}, {1: 1.0}, {1: 0.5, 2: 0.5}, {3: 1.0}, {4: 1.0}]),
+            model=Sparse.from_rows([{0: 1.0}, {1: 1.0}, {1: 0.5, 2: 0.5}, {3: 1.0}, {4: 1.0}]),
         ),
     )
 

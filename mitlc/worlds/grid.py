@@ -11,8 +11,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 from mitlc.worlds.model import Observations, Sparse
 from mitlc.worlds.schema import Motion, WorldFile, show
 
@@ -271,18 +269,8 @@ def local_pattern(layout: Layout) -> Observations:
 
 
 def _sparse(rows: list[dict[int, float]]) -> Sparse:
-    """Compressed rows from distributions, targets sorted, zero probabilities dropped."""
-    indptr, targets, probs = [0], [], []
+    """:meth:`Sparse.from_rows`, after checking that every row sums to 1."""
     for r, row in enumerate(rows):
         total = sum(row.values())
         assert abs(total - 1.0) <= TOLERANCE, f"row {r} sums to {total}"
-        for target in sorted(row):
-            if row[target] > 0.0:
-                targets.append(target)
-                probs.append(row[target])
-        indptr.append(len(targets))
-    return Sparse(
-        np.asarray(indptr, dtype=np.int64),
-        np.asarray(targets, dtype=np.int64),
-        np.asarray(probs, dtype=np.float64),
-    )
+    return Sparse.from_rows(rows)

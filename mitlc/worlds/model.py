@@ -30,6 +30,23 @@ class Sparse:
     targets: IntArray
     probs: FloatArray
 
+    @staticmethod
+    def from_rows(rows: list[dict[int, float]]) -> Sparse:
+        """Compressed rows from distributions ``{target: probability}``; targets sorted, zero
+        probabilities dropped."""
+        indptr, targets, probs = [0], [], []
+        for row in rows:
+            for target in sorted(row):
+                if row[target] > 0.0:
+                    targets.append(target)
+                    probs.append(row[target])
+            indptr.append(len(targets))
+        return Sparse(
+            np.asarray(indptr, dtype=np.int64),
+            np.asarray(targets, dtype=np.int64),
+            np.asarray(probs, dtype=np.float64),
+        )
+
     @property
     def num_rows(self) -> int:
         """The number of rows."""
