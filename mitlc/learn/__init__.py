@@ -1,0 +1,1 @@
+"""Learning policies on the product: tabular Q-learning, DQN and recurrent DQN."""

@@ -1,0 +1,129 @@
+"""What every learner shares: the interfaces, the learning signal (discount and shaping) and
+action choice under a validity mask."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import numpy as np
+
+from mitlc.automata.digital import DigitalAutomaton
+from mitlc.learn.config import Discount, TrainConfig
+from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+
+
+class Policy(ABC):
+    """A greedy policy acting in a :class:`VecProduct`; it may remember each episode's past."""
+
+    def reset(self, num_envs: int) -> None:  # noqa: B027 - stateless policies need nothing
+        """Forget everything: ``num_envs`` fresh episodes begin."""
+
+    @abstractmethod
+    def act(self, env: VecProduct) -> IntArray:
+        """The action of each episode of ``env`` (valid ones only)."""
+
+    def observe(self, step: Step) -> None:  # noqa: B027 - stateless policies need nothing
+        """Take note of ``step`` (restart the memory of the episodes it ended)."""
+
+
+class Learner(ABC):
+    """A learning algorithm: it steps a batch of episodes and learns from what it sees."""
+
+    num_envs: int
+
+    @abstractmethod
+    def train_step(self, env: VecProduct, fraction: float) -> Step:
+        """Choose actions (exploring), step ``env`` once and learn; ``fraction`` is the share
+        of the run's episodes done so far (for schedules)."""
+
+    @property
+    @abstractmethod
+    def epsilon(self) -> float:
+        """The exploration rate of the last step."""
+
+    @abstractmethod
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly (random states included)."""
+
+    @abstractmethod
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+
+    @abstractmethod
+    def policy(self) -> Policy:
+        """The greedy policy learned so far."""
+
+
+def epsilon_at(fraction: float, start: float, end: float, decay: float) -> float:
+    """Linear decay from ``start`` to ``end`` over the first ``decay`` share of the run."""
+    if decay <= 0.0:
+        return end
+    return end + (start - end) * max(0.0, 1.0 - fraction / decay)
+
+
+def step_discounts(step: Step, discount: Discount) -> FloatArray:
+    """Each transition's discount: ``gamma``, or ``gamma_accept`` on accepting steps."""
+    if discount.mode == "accepting":
+        return np.where(step.accepting, discount.gamma_accept, discount.gamma)
+    return np.full(len(step.reward), discount.gamma)
+
+
+def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
+    """Per automaton state, the fewest letters to a transition that marks an acceptance set or
+    enters a satisfied state (0 when satisfied; violated and hopeless states get one more than
+    the largest finite distance)."""
+    num_q = len(automaton.states)
+    inf = float(num_q + 1)
+    distance = np.full(num_q, inf)
+    for q, state in enumerate(automaton.states):
+        if state.verdict == "satisfied":
+            distance[q] = 0.0
+    delta = np.asarray(automaton.delta, dtype=np.int64).reshape(num_q, -1)
+    marks = np.asarray(automaton.marks, dtype=np.int64).reshape(num_q, -1)
+    direct = np.where(marks.any(axis=1), 1.0, inf)
+    for _ in range(num_q):
+        updated = np.minimum(distance, np.minimum(direct, 1.0 + distance[delta].min(axis=1)))
+        updated[distance == 0.0] = 0.0
+        if np.array_equal(updated, distance):
+            break
+        distance = updated
+    finite = distance[distance < inf]
+    result: FloatArray = np.where(
+        distance < inf, distance, (finite.max() if len(finite) else 0) + 1
+    )
+    return result
+
+
+def potential(tables: Tables, automaton: DigitalAutomaton, scale: float) -> FloatArray:
+    """The shaping potential of each product state: ``-scale`` times the automaton's distance to
+    acceptance; 0 at the absorbing states (an episode's end)."""
+    distance = automaton_distance(automaton)
+    phi: FloatArray = -scale * distance[np.maximum(tables.automaton_state, 0)]
+    phi[tables.world_state < 0] = 0.0
+    return phi
+
+
+def learning_signal(
+    step: Step, before: IntArray, config: TrainConfig, phi: FloatArray | None
+) -> tuple[FloatArray, FloatArray]:
+    """The reward a learner maximises and the discount of each transition: the world's reward,
+    plus ``gamma * phi(next) - phi(before)`` with shaping on."""
+    gammas = step_discounts(step, config.discount)
+    reward = step.reward
+    if phi is not None:
+        reward = reward + gammas * phi[step.next_state] - phi[before]
+    return reward, gammas
+
+
+def masked_argmax(values: FloatArray, valid: BoolArray) -> IntArray:
+    """The best valid action of each row."""
+    best: IntArray = np.where(valid, values, -np.inf).argmax(axis=1)
+    return best
+
+
+def random_valid(rng: np.random.Generator, valid: BoolArray) -> IntArray:
+    """A uniformly random valid action of each row."""
+    draws: IntArray = (rng.random(valid.shape) * valid).argmax(axis=1)
+    return draws

@@ -1,0 +1,284 @@
+"""Training settings: typed dataclasses, read from a world file's ``training`` mapping and
+``--set key=value`` overrides, with errors that name the field's path.
+
+A world file may say::
+
+    training:
+      algo: q            # q | dqn | drqn (default: q for an MDP, drqn for a POMDP)
+      episodes: 20000
+      q: {alpha: 0.2}    # the learner's own section: QConfig, DQNConfig or DRQNConfig
+
+Every learner's config is a frozen dataclass whose fields have defaults; :func:`resolve`
+checks names and types and fills the rest in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, TypeVar
+
+from mitlc.errors import MitlcError
+
+ALGORITHMS = ("q", "dqn", "drqn")
+Algorithm = Literal["q", "dqn", "drqn"]
+
+
+class ConfigError(MitlcError):
+    """A training setting with a bad name or value; the message names its path."""
+
+
+@dataclass(frozen=True, slots=True)
+class Discount:
+    """The discount of a step: ``gamma``, or with ``mode: accepting`` (Bozkurt, Wang, Zavlanos
+    and Pajic, "Control synthesis from linear temporal logic specifications using model-free
+    reinforcement learning", ICRA 2020) ``gamma_accept`` on steps that add an acceptance set to
+    the frontier and ``gamma`` on the others. ``gamma`` stays below 1 by default: with 1 off
+    acceptance, waiting forever would cost a greedy policy nothing."""
+
+    mode: Literal["constant", "accepting"] = "constant"
+    gamma: float = 0.99
+    gamma_accept: float = 0.99
+
+
+@dataclass(frozen=True, slots=True)
+class QConfig:
+    """Tabular Q-learning over (frontier, product state) pairs."""
+
+    num_envs: int = 256
+    alpha: float = 0.1
+    """The learning rate at the start."""
+    alpha_end: float = 0.1
+    """The learning rate at the end; it falls linearly over the run."""
+    epsilon_start: float = 1.0
+    epsilon_end: float = 0.02
+    epsilon_decay: float = 0.6
+    """The fraction of the episodes over which epsilon falls linearly to ``epsilon_end``."""
+    initial_value: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class DQNConfig:
+    """Deep Q-learning with a target network and replay (Mnih et al., Nature 2015), optionally
+    Double DQN (van Hasselt, Guez and Silver, AAAI 2016)."""
+
+    num_envs: int = 16
+    hidden: int = 128
+    layers: int = 2
+    lr: float = 1e-3
+    batch_size: int = 128
+    replay_size: int = 100_000
+    warmup_steps: int = 2_000
+    train_every: int = 1
+    """Vector steps between gradient steps."""
+    target_update: int = 500
+    """Gradient steps between target network copies."""
+    double: bool = True
+    epsilon_start: float = 1.0
+    epsilon_end: float = 0.02
+    epsilon_decay: float = 0.5
+    grad_clip: float = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class DRQNConfig:
+    """Recurrent DQN over the observation history (Hausknecht and Stone, 2015), with sequence
+    replay and burn-in (Kapturowski et al., "R2D2", ICLR 2019)."""
+
+    num_envs: int = 16
+    cell: Literal["gru", "lstm"] = "gru"
+    hidden: int = 128
+    lr: float = 1e-3
+    batch_size: int = 32
+    """Sequences per gradient step."""
+    sequence_length: int = 20
+    burn_in: int = 10
+    replay_size: int = 5_000
+    """Stored sequences."""
+    warmup_sequences: int = 200
+    train_every: int = 4
+    target_update: int = 250
+    double: bool = True
+    epsilon_start: float = 1.0
+    epsilon_end: float = 0.02
+    epsilon_decay: float = 0.5
+    grad_clip: float = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class TrainConfig:
+    """Everything a run needs besides the world; saved as the run's ``config.json``."""
+
+    algo: Algorithm = "q"
+    seed: int = 0
+    episodes: int = 20_000
+    log_every: int = 1_000
+    """Episodes between lines of ``metrics.jsonl``."""
+    checkpoint_every: int = 5_000
+    """Episodes between checkpoints (one is also written at the end and on interruption)."""
+    eval_episodes: int = 10_000
+    discount: Discount = field(default_factory=Discount)
+    shaping: float = 0.0
+    """The scale of potential-based shaping (Ng, Harada and Russell, ICML 1999) with potential
+    ``-shaping * d`` where ``d`` is the automaton's distance to acceptance; 0 turns it off."""
+    q: QConfig = field(default_factory=QConfig)
+    dqn: DQNConfig = field(default_factory=DQNConfig)
+    drqn: DRQNConfig = field(default_factory=DRQNConfig)
+
+    @property
+    def learner(self) -> QConfig | DQNConfig | DRQNConfig:
+        """The chosen algorithm's own section."""
+        section: QConfig | DQNConfig | DRQNConfig = getattr(self, self.algo)
+        return section
+
+
+T = TypeVar("T")
+
+
+def _coerce(value: Any, kind: Any, path: str) -> Any:
+    """``value`` as the annotated type ``kind`` (int, float, bool, str, Literal, dataclass)."""
+    if dataclasses.is_dataclass(kind) and isinstance(kind, type):
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{path}: expected a mapping, got {value!r}")
+        return _build(kind, value, path)
+    if typing.get_origin(kind) is Literal:
+        choices = typing.get_args(kind)
+        if value not in choices:
+            raise ConfigError(f"{path}: expected one of {', '.join(choices)}, got {value!r}")
+        return value
+    if kind is bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.lower() in ("true", "false"):
+            return value.lower() == "true"
+        raise ConfigError(f"{path}: expected true or false, got {value!r}")
+    if kind in (int, float):
+        if isinstance(value, bool):
+            raise ConfigError(f"{path}: expected a number, got {value!r}")
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{path}: expected a number, got {value!r}") from None
+        if kind is int:
+            if not number.is_integer():
+                raise ConfigError(f"{path}: expected an integer, got {value!r}")
+            return int(number)
+        return number
+    if kind is str:
+        return str(value)
+    raise TypeError(f"unsupported setting type {kind!r} at {path}")  # pragma: no cover
+
+
+def _build(cls: type[T], values: Mapping[str, Any], path: str) -> T:
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    kwargs = {}
+    for key, value in values.items():
+        where = f"{path}.{key}" if path else str(key)
+        if key not in names:
+            raise ConfigError(f"{where}: unknown setting (expected one of {', '.join(names)})")
+        kwargs[key] = _coerce(value, hints[key], where)
+    built = cls(**kwargs)
+    _check_ranges(built, path)
+    return built
+
+
+def _check_ranges(config: object, path: str) -> None:
+    for f in dataclasses.fields(config):  # type: ignore[arg-type]
+        value = getattr(config, f.name)
+        where = f"{path}.{f.name}" if path else f.name
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            continue
+        if f.name.startswith(("gamma", "epsilon")) and not 0.0 <= value <= 1.0:
+            raise ConfigError(f"{where}: expected a value in [0, 1], got {value!r}")
+        if f.name in _POSITIVE and value <= 0:
+            raise ConfigError(f"{where}: expected a positive value, got {value!r}")
+
+
+_POSITIVE = {
+    "episodes",
+    "log_every",
+    "checkpoint_every",
+    "num_envs",
+    "alpha",
+    "hidden",
+    "layers",
+    "lr",
+    "batch_size",
+    "replay_size",
+    "train_every",
+    "target_update",
+    "sequence_length",
+    "eval_episodes",
+}
+
+
+def _nest(overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"q.alpha": 0.2}`` as ``{"q": {"alpha": 0.2}}``."""
+    nested: dict[str, Any] = {}
+    for dotted, value in overrides.items():
+        *heads, last = dotted.split(".")
+        place = nested
+        for head in heads:
+            place = place.setdefault(head, {})
+            if not isinstance(place, dict):
+                raise ConfigError(f"{dotted}: {head} is not a section")
+        place[last] = value
+    return nested
+
+
+def _merge(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def resolve(
+    training: Mapping[str, Any],
+    overrides: Mapping[str, Any],
+    *,
+    discount: float,
+    pomdp: bool,
+) -> TrainConfig:
+    """The run's settings: defaults (``drqn`` for a POMDP; the world's ``discount`` as
+    ``gamma``), then the world file's ``training`` mapping, then ``overrides`` (dotted keys,
+    e.g. ``{"q.alpha": "0.2"}``). Raises :class:`ConfigError` naming the path
+    (``training.q.alpha``)."""
+    base: dict[str, Any] = {"algo": "drqn" if pomdp else "q", "discount": {"gamma": discount}}
+    values = _merge(_merge(base, training), _nest(overrides))
+    if not isinstance(values.get("discount"), Mapping):
+        raise ConfigError(f"training.discount: expected a mapping, got {values['discount']!r}")
+    try:
+        return _build(TrainConfig, values, "")
+    except ConfigError as err:
+        raise ConfigError(f"training.{err}") from None
+
+
+def to_data(config: TrainConfig) -> dict[str, Any]:
+    """The settings as JSON-ready data (``config.json``); :func:`from_data` reads it back."""
+    return dataclasses.asdict(config)
+
+
+def from_data(data: Mapping[str, Any]) -> TrainConfig:
+    """The settings saved by :func:`to_data`."""
+    return _build(TrainConfig, data, "")
+
+
+__all__ = [
+    "ALGORITHMS",
+    "ConfigError",
+    "DQNConfig",
+    "DRQNConfig",
+    "Discount",
+    "QConfig",
+    "TrainConfig",
+    "from_data",
+    "resolve",
+    "to_data",
+]

@@ -1,0 +1,85 @@
+"""The exact success probability of a memoryless policy on an MDP's product: the Markov chain
+it induces, solved by backward induction over the horizon.
+
+The event is the episode's success (see :mod:`mitlc.learn.vec`): never *violated*, and
+*satisfied* or a completed round of all acceptance sets within ``horizon`` world actions. The
+policy may depend on the frontier mask, so the values are indexed ``[mask, product state]``
+like those of :func:`mitlc.check.solve.pmax_horizon` (its optimum is the same recursion with a
+maximum over the choices); epsilon jumps take no step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.worlds.model import FloatArray, IntArray
+
+Plan = tuple[list[tuple[IntArray, csr_matrix, int]], IntArray, IntArray]
+"""Per mask: (states, their world-action choices' rows, the mask after), jump sources and
+targets."""
+
+
+def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
+    """The probability that following ``choices[mask, x]`` (a product choice of state ``x``
+    when the frontier is ``mask``; -1 at the absorbing states) from the initial state succeeds
+    within ``horizon`` world actions."""
+    all_sets = (1 << product.num_sets) - 1
+    n = product.num_states
+    if choices.shape != (all_sets + 1, n):
+        raise ValueError(f"choices has shape {choices.shape}, expected {(all_sets + 1, n)}")
+    t = product.transitions
+    matrix = csr_matrix((t.probs, t.targets, t.indptr), shape=(product.num_choices, n))
+    owner = np.repeat(np.arange(n), np.diff(product.choice_ptr))
+    live = product.world_state >= 0
+    chosen = choices[:, live]
+    if (chosen < 0).any() or (owner[np.maximum(chosen, 0)] != np.flatnonzero(live)).any():
+        raise ValueError("choices must give each pending state one of its own choices")
+    is_jump = product.action < 0
+    jump_target = t.targets[t.indptr[:-1]]
+    plans: list[
+        Plan
+    ] = []  # per mask: (world-action states, their choices grouped by the mask after)
+    for mask in range(all_sets if product.num_sets else 1):
+        states = np.flatnonzero(live)
+        picked = choices[mask, states]
+        walk = ~is_jump[picked]
+        after = mask | product.marks[picked[walk]]
+        groups = [
+            (states[walk][after == a], matrix[picked[walk][after == a]], int(a))
+            for a in np.unique(after).tolist()
+        ]
+        plans.append((groups, states[~walk], jump_target[picked[~walk]]))
+    values = _ends(all_sets, n)
+    values[all_sets, live] = 1.0  # with no sets: not violated by the horizon is a success
+    values = _jump(values, plans)
+    for _ in range(horizon):
+        step = _ends(all_sets, n)
+        if product.num_sets:
+            step[all_sets, live] = 1.0
+        for mask, (groups, _, _) in enumerate(plans):
+            for states, rows, after in groups:
+                step[mask, states] = rows @ values[after]
+        values = _jump(step, plans)
+    return float(values[0, product.initial])
+
+
+def _ends(all_sets: int, n: int) -> FloatArray:
+    values = np.zeros((all_sets + 1, n))
+    values[:, SATISFIED] = 1.0
+    values[:, VIOLATED] = 0.0
+    return values
+
+
+def _jump(values: FloatArray, plans: list[Plan]) -> FloatArray:
+    """States whose policy jumps take their target's value (chains followed to the end)."""
+    for mask, (_, sources, targets) in enumerate(plans):
+        for _ in range(len(sources)):
+            if not len(sources):
+                break
+            updated = values[mask, targets]
+            if np.array_equal(values[mask, sources], updated):
+                break
+            values[mask, sources] = updated
+    return values

@@ -1,0 +1,288 @@
+"""A batch of product episodes stepped together in numpy: ``VecProduct(tables, n, rng)``.
+
+The learners' simulator. It reads the transition tables of the explicit product
+(:func:`mitlc.product.explicit.build_product`), so learning and checking see one model, and
+follows the conventions of :class:`mitlc.product.env.ProductEnv` (the gymnasium environment):
+
+* actions ``0 .. A-1`` are the world's, ``A + j`` the ``j``-th epsilon jump of the automaton
+  state (by target); a jump takes no time. :attr:`Tables.valid` masks the jumps a state lacks
+  (learners never choose them);
+* rewards: ``accept`` for each acceptance set new in the current round (a generalized Büchi
+  frontier, emptied when every set has been seen), ``satisfied`` / ``violated`` on entering those
+  states, ``move`` for each world action other than ``stay``;
+* an episode ends when it enters *satisfied* or *violated* (terminated) or after ``horizon``
+  world actions (truncated); it is a **success** when it never reached *violated* and reached
+  *satisfied* or completed a round of all acceptance sets (or there are none) by then.
+
+Sampling is inverse-CDF over one global cumulative array (``row + cumulative probability``), so
+a step of ``n`` episodes is a handful of vectorised operations whatever ``n``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Sparse, World
+
+
+@dataclass(frozen=True, slots=True)
+class Tables:
+    """The product as flat arrays for simulation (see the module docstring)."""
+
+    num_world_actions: int
+    num_actions: int
+    """World actions plus the most epsilon jumps any state has."""
+    initial: int
+    choice: IntArray
+    """``choice[x, a]``: the product choice of action ``a`` in state ``x`` (-1: not valid)."""
+    valid: BoolArray
+    """``choice >= 0``."""
+    cumulative: FloatArray
+    """Per transition ``c + P(first transitions of choice c up to this one)``."""
+    indptr: IntArray
+    targets: IntArray
+    marks: IntArray
+    moves: BoolArray
+    """Per choice: a world action other than ``stay``."""
+    world_state: IntArray
+    automaton_state: IntArray
+    num_sets: int
+    horizon: int
+    reward_accept: float
+    reward_satisfied: float
+    reward_violated: float
+    reward_move: float
+    observation: Sparse | None
+    """For a POMDP, the observation distribution of each world state."""
+    observation_cumulative: FloatArray | None
+    num_observations: int
+    """Observation ids (cells for an MDP)."""
+
+    @property
+    def num_states(self) -> int:
+        """Product states, the absorbing ones included."""
+        return len(self.world_state)
+
+    @property
+    def num_automaton_states(self) -> int:
+        """One more than the largest automaton state in the product."""
+        return int(self.automaton_state.max()) + 1
+
+    @property
+    def all_sets(self) -> int:
+        """The mask of all acceptance sets."""
+        return (1 << self.num_sets) - 1
+
+
+def _cumulative(sparse: Sparse) -> FloatArray:
+    rows = np.repeat(np.arange(sparse.num_rows), np.diff(sparse.indptr))
+    within = np.cumsum(sparse.probs)
+    before = np.concatenate([[0.0], within])[sparse.indptr[:-1]]
+    cumulative: FloatArray = rows + (within - np.repeat(before, np.diff(sparse.indptr)))
+    return cumulative
+
+
+def tables(product: Product, world: World) -> Tables:
+    """The simulation tables of ``product``, the product of ``world`` with its task."""
+    n, num_a = product.num_states, world.num_actions
+    counts = np.diff(product.choice_ptr)
+    width = max(num_a, int(counts.max()))
+    choice = np.full((n, width), -1, dtype=np.int64)
+    pending = product.world_state >= 0
+    rank = np.arange(product.num_choices) - np.repeat(product.choice_ptr[:-1], counts)
+    owner = np.repeat(np.arange(n), counts)
+    keep = pending[owner]
+    choice[owner[keep], rank[keep]] = np.flatnonzero(keep)
+    stay = world.actions.index("stay") if "stay" in world.actions else -1
+    observations = world.observations
+    return Tables(
+        num_world_actions=num_a,
+        num_actions=width,
+        initial=product.initial,
+        choice=choice,
+        valid=choice >= 0,
+        cumulative=_cumulative(product.transitions),
+        indptr=product.transitions.indptr,
+        targets=product.transitions.targets,
+        marks=product.marks,
+        moves=(product.action >= 0) & (product.action != stay),
+        world_state=product.world_state,
+        automaton_state=product.automaton_state,
+        num_sets=product.num_sets,
+        horizon=world.horizon,
+        reward_accept=world.rewards.accept,
+        reward_satisfied=world.rewards.satisfied,
+        reward_violated=world.rewards.violated,
+        reward_move=world.rewards.move,
+        observation=None if observations is None else observations.model,
+        observation_cumulative=None if observations is None else _cumulative(observations.model),
+        num_observations=world.num_states if observations is None else len(observations.names),
+    )
+
+
+def draw(
+    cumulative: FloatArray, indptr: IntArray, targets: IntArray, rows: IntArray, uniform: FloatArray
+) -> IntArray:
+    """For each ``rows[i]``, the target that ``uniform[i]`` in [0, 1) selects."""
+    index = np.searchsorted(cumulative, rows + uniform, side="right")
+    index = np.clip(index, indptr[rows], indptr[rows + 1] - 1)
+    drawn: IntArray = targets[index]
+    return drawn
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """What one step of the batch did. ``next_*`` describe the state each episode reached
+    *before* ended episodes were restarted (what a learner bootstraps from)."""
+
+    reward: FloatArray
+    """The world file's reward terms."""
+    accepting: BoolArray
+    """The step added a set to the frontier (for the accepting-step discount)."""
+    terminated: BoolArray
+    truncated: BoolArray
+    next_state: IntArray
+    next_mask: IntArray
+    next_observation: IntArray
+    success: BoolArray
+    """For ended episodes: whether they succeeded."""
+    episode_return: FloatArray
+    """The return so far of each episode, this step included (complete for ended ones)."""
+    episode_steps: IntArray
+    """World actions taken so far in each episode, this step included."""
+
+    @property
+    def done(self) -> BoolArray:
+        """Episodes that ended on this step."""
+        ended: BoolArray = self.terminated | self.truncated
+        return ended
+
+
+class VecProduct:
+    """``num_envs`` product episodes stepped together; ended episodes restart at once.
+
+    The state of episode ``i`` is ``state[i]`` (a product state), ``mask[i]`` (the frontier of
+    acceptance sets seen in this round), ``steps[i]`` (world actions taken), ``observation[i]``
+    (what the agent sees: the cell for an MDP, an observation id for a POMDP) and
+    ``returns[i]`` / ``rounds[i]``. All randomness comes from ``rng``.
+    """
+
+    def __init__(self, tables: Tables, num_envs: int, rng: np.random.Generator) -> None:
+        self.tables, self.num_envs, self.rng = tables, num_envs, rng
+        self.state = np.full(num_envs, tables.initial, dtype=np.int64)
+        self.mask = np.zeros(num_envs, dtype=np.int64)
+        self.steps = np.zeros(num_envs, dtype=np.int64)
+        self.actions_taken = np.zeros(num_envs, dtype=np.int64)
+        self.rounds = np.zeros(num_envs, dtype=np.int64)
+        self.returns = np.zeros(num_envs)
+        self.observation = self._observe(self.state)
+
+    # -- checkpoints ---------------------------------------------------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly (the rng's state included)."""
+        return {
+            "state": self.state.copy(),
+            "mask": self.mask.copy(),
+            "steps": self.steps.copy(),
+            "actions_taken": self.actions_taken.copy(),
+            "rounds": self.rounds.copy(),
+            "returns": self.returns.copy(),
+            "observation": self.observation.copy(),
+            "rng": self.rng.bit_generator.state,
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        for name in ("state", "mask", "steps", "actions_taken", "rounds", "returns", "observation"):
+            setattr(self, name, np.array(saved[name]))
+        self.rng.bit_generator.state = saved["rng"]
+
+    # -- stepping ------------------------------------------------------------------------------
+
+    def valid_actions(self) -> BoolArray:
+        """``valid[i, a]``: action ``a`` is available to episode ``i``."""
+        valid: BoolArray = self.tables.valid[self.state]
+        return valid
+
+    def step(self, actions: IntArray) -> Step:
+        """Take ``actions[i]`` in episode ``i`` (each must be valid); restart ended episodes."""
+        t = self.tables
+        choice = t.choice[self.state, actions]
+        if (choice < 0).any():
+            bad = int(np.flatnonzero(choice < 0)[0])
+            raise ValueError(f"action {int(actions[bad])} is not valid in episode {bad}")
+        uniform = self.rng.random(self.num_envs)
+        nxt = draw(t.cumulative, t.indptr, t.targets, choice, uniform)
+        jump = actions >= t.num_world_actions
+        marks = t.marks[choice]
+        new = marks & ~self.mask
+        new_count = _popcount(new)
+        seen = self.mask | marks
+        complete = (seen == t.all_sets) & (t.num_sets > 0)
+        self.rounds += complete
+        mask = np.where(complete, 0, seen)
+        reward = t.reward_accept * new_count + t.reward_move * t.moves[choice]
+        reward = reward + np.where(nxt == SATISFIED, t.reward_satisfied, 0.0)
+        reward = reward + np.where(nxt == VIOLATED, t.reward_violated, 0.0)
+        self.steps += ~jump
+        self.actions_taken += 1
+        terminated = (nxt == SATISFIED) | (nxt == VIOLATED)
+        # jumps take no time; a bound on all actions stops a policy that only jumps
+        truncated = ~terminated & (
+            (self.steps >= t.horizon) | (self.actions_taken >= 4 * t.horizon + 4)
+        )
+        observation = np.where(jump, self.observation, self._observe(nxt))
+        success = (nxt != VIOLATED) & ((nxt == SATISFIED) | (self.rounds > 0) | (t.num_sets == 0))
+        self.returns += reward
+        result = Step(
+            reward=reward,
+            accepting=new_count > 0,
+            terminated=terminated,
+            truncated=truncated,
+            next_state=nxt,
+            next_mask=mask,
+            next_observation=observation,
+            success=success,
+            episode_return=self.returns.copy(),
+            episode_steps=self.steps.copy(),
+        )
+        self.state, self.mask, self.observation = nxt, mask, observation
+        self._restart(result.done)
+        return result
+
+    def _restart(self, done: BoolArray) -> None:
+        if not done.any():
+            return
+        t = self.tables
+        self.state = np.where(done, t.initial, self.state)
+        self.mask = np.where(done, 0, self.mask)
+        for counter in (self.steps, self.actions_taken, self.rounds):
+            counter[done] = 0
+        self.returns[done] = 0.0
+        self.observation = np.where(done, self._observe(self.state), self.observation)
+
+    def _observe(self, states: IntArray) -> IntArray:
+        """What the agent sees in product states ``states`` (absorbing ones: 0)."""
+        t = self.tables
+        cells = np.maximum(t.world_state[states], 0)
+        if t.observation is None or t.observation_cumulative is None:
+            return cells
+        uniform = self.rng.random(len(states))
+        seen: IntArray = draw(
+            t.observation_cumulative, t.observation.indptr, t.observation.targets, cells, uniform
+        )
+        return seen
+
+
+def _popcount(values: IntArray) -> IntArray:
+    count = np.zeros_like(values)
+    rest = values.copy()
+    while rest.any():
+        count += rest & 1
+        rest >>= 1
+    return count
