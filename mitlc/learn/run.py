@@ -139,6 +139,15 @@ def load_setting(directory: Path) -> Setting:
     return prepare(Path(data["world"]), config, data["spec"])
 
 
+def load_learner(directory: Path) -> tuple[Setting, Learner]:
+    """The run in ``directory``: its setting, and its learner as last checkpointed."""
+    setting = load_setting(directory)
+    saved = load_checkpoint(directory)
+    learner = make_learner(setting, _rngs(setting.config.seed)[1])
+    learner.load_state_dict(saved["learner"])
+    return setting, learner
+
+
 def _write_json(path: Path, data: Any) -> None:
     write_atomically(path, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode())
 
