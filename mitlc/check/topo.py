@@ -1,10 +1,12 @@
 """Maximal reachability in topological order of the strongly connected components.
 
 The products of time-bounded tasks are nearly acyclic: the automaton's clock moves on at every
-step, so most components are single states. Components are peeled off from the sinks, a whole
-level at a time in numpy: a single state ``x`` gets its value directly,
-``max_c (sum_{y != x} P(c, y) v_y) / (1 - P(c, x))`` over the choices that can leave it (a
-choice that surely stays contributes nothing), and a larger component is solved by value
+step, so most components are single states. The components are layered by Kahn's algorithm
+(Kahn, "Topological sorting of large networks", CACM 1962), a whole layer at a time in numpy:
+layer 0 has no successors, and layer ``d + 1`` the components whose successors all lie in
+layers up to ``d``. Layers are solved from the sinks up: a single state ``x`` gets its value
+directly, ``max_c (sum_{y != x} P(c, y) v_y) / (1 - P(c, x))`` over the choices that can leave
+it (a choice that surely stays contributes nothing), and a larger component is solved by value
 iteration from below with every later component's values already fixed (Ciesinski, Baier,
 Größer and Klein, "Reduction techniques for model checking Markov decision processes", QEST
 2008, describe the same topological ordering).
@@ -22,7 +24,19 @@ from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 TOLERANCE = 1e-14
 
 
-def _gather(ptr: IntArray, values: IntArray, keys: IntArray) -> IntArray:
+def state_graph(product: Product) -> csr_matrix:
+    """The product's state graph (``x -> y`` when some choice of ``x`` may reach ``y``) in
+    compressed rows, read off the choice rows; each edge once (scipy 1.17's strongly connected
+    components do not terminate on duplicate edges)."""
+    t = product.transitions
+    n = product.num_states
+    indptr = t.indptr[product.choice_ptr]
+    graph = csr_matrix((np.ones(len(t.targets)), t.targets.copy(), indptr), shape=(n, n))
+    graph.sum_duplicates()
+    return graph
+
+
+def gather(ptr: IntArray, values: IntArray, keys: IntArray) -> IntArray:
     """``concatenate(values[ptr[k]:ptr[k+1]] for k in keys)``, vectorised."""
     counts = ptr[keys + 1] - ptr[keys]
     starts = np.repeat(ptr[keys] - np.cumsum(counts) + counts, counts)
@@ -30,93 +44,129 @@ def _gather(ptr: IntArray, values: IntArray, keys: IntArray) -> IntArray:
     return gathered
 
 
-def _levels(component: IntArray, count: int, sources: IntArray, targets: IntArray) -> IntArray:
-    """Each component's level: 0 for components without successors, else one more than the
-    largest level among its successors."""
-    crossing = component[sources] != component[targets]
-    pairs = np.unique(component[sources][crossing] * count + component[targets][crossing])
-    tails, heads = pairs // count, pairs % count
-    remaining = np.bincount(tails, minlength=count)
-    order = np.argsort(heads, kind="stable")
-    back_tails = tails[order]
-    back_ptr = np.searchsorted(heads[order], np.arange(count + 1))
-    level = np.full(count, -1, dtype=np.int64)
+def layers(forward: csr_matrix) -> tuple[IntArray, IntArray]:
+    """``(order, ptr)``: the nodes of an acyclic graph (self-loops allowed) layered by Kahn's
+    algorithm, layer ``d`` being ``order[ptr[d]:ptr[d+1]]`` (``ptr`` ends with the node count);
+    layer 0 has no successors."""
+    count = forward.shape[0]
+    tails = np.repeat(np.arange(count), np.diff(forward.indptr))
+    loops = tails == forward.indices
+    remaining = np.diff(forward.indptr) - np.bincount(tails[loops], minlength=count)
+    del tails, loops
+    backward = forward.tocsc()  # column j lists the predecessors of j
+    back_ptr = backward.indptr.astype(np.int64)
+    back_tails = backward.indices.astype(np.int64)
+    del backward
+    slot = np.zeros(count, dtype=np.int64)
     frontier = np.flatnonzero(remaining == 0)
-    depth = 0
+    found = [frontier]
     while len(frontier):
-        level[frontier] = depth
-        before = _gather(back_ptr, back_tails, frontier)
+        before = gather(back_ptr, back_tails, frontier)
         np.subtract.at(remaining, before, 1)
-        frontier = np.unique(before[remaining[before] == 0])
-        depth += 1
-    return level
+        ready = before[remaining[before] == 0]  # a self-loop takes its own node below 0
+        index = np.arange(len(ready))
+        slot[ready] = index
+        frontier = ready[slot[ready] == index]  # one copy of each
+        found.append(frontier)
+    sizes = np.array([len(f) for f in found[:-1]], dtype=np.int64)
+    ptr = np.concatenate([[0], np.cumsum(sizes)])
+    order = np.concatenate(found)
+    if len(order) != count:
+        raise ValueError("the graph has a cycle of more than one node")
+    return order, ptr
 
 
 def topological_values(
-    product: Product, matrix: csr_matrix, target: BoolArray, zero: BoolArray
+    product: Product,
+    matrix: csr_matrix,
+    target: BoolArray,
+    zero: BoolArray,
+    graph: csr_matrix | None = None,
 ) -> FloatArray:
-    """The maximal probabilities of reaching ``target`` (``zero``: states that cannot)."""
+    """The maximal probabilities of reaching ``target`` (``zero``: states that cannot);
+    ``graph`` is :func:`state_graph`'s, when the caller has it."""
     n = product.num_states
-    ptr = product.choice_ptr
-    choice_state = np.repeat(np.arange(n), np.diff(ptr))
-    t = product.transitions
-    edge_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
-    edge_source = choice_state[edge_choice]
-    graph = csr_matrix((np.ones(len(edge_source)), (edge_source, t.targets)), shape=(n, n))
+    graph = state_graph(product) if graph is None else graph
     count, labels = connected_components(graph, directed=True, connection="strong")
-    component = labels.astype(np.int64)
-    level = _levels(component, count, edge_source, t.targets)[component]
-    size = np.bincount(component, minlength=count)[component]
-    stays = np.zeros(product.num_choices)
-    loops = t.targets == edge_source
-    np.add.at(stays, edge_choice[loops], t.probs[loops])
+    if count == n:  # every component a single state: the state graph is the condensation
+        order, ptr = layers(graph)
+        size = np.ones(n, dtype=np.int64)
+    else:
+        component = labels.astype(np.int64)
+        sources = np.repeat(component, np.diff(graph.indptr))
+        condensed = csr_matrix(
+            (np.ones(len(sources)), (sources, component[graph.indices])), shape=(count, count)
+        )
+        level = np.empty(count, dtype=np.int64)
+        by_level, level_ptr = layers(condensed)
+        level[by_level] = np.repeat(np.arange(len(level_ptr) - 1), np.diff(level_ptr))
+        order = np.argsort(level[component], kind="stable")
+        ptr = np.searchsorted(level[component][order], np.arange(len(level_ptr)))
+        size = np.bincount(component, minlength=count)[component]
+    return _solve_layers(product, matrix, order, ptr, size, target, zero)
+
+
+def _solve_layers(
+    product: Product,
+    matrix: csr_matrix,
+    order: IntArray,
+    ptr: IntArray,
+    size: IntArray,
+    target: BoolArray,
+    zero: BoolArray,
+) -> FloatArray:
+    """The values, layer by layer from the sinks; ``order[ptr[d]:ptr[d+1]]`` are layer ``d``'s
+    states and ``size`` each state's component size."""
+    n = product.num_states
+    t = product.transitions
+    per_state = np.diff(product.choice_ptr)
+    if (per_state[order] == 0).any():
+        raise ValueError("a product state without choices")
+    edge_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
+    loops = t.targets == np.repeat(np.arange(n), per_state)[edge_choice]
+    stays = np.bincount(edge_choice[loops], weights=t.probs[loops], minlength=product.num_choices)
+    del edge_choice
+    # The choices in layer order (each state's choices together), with self-loops left out.
+    choices = gather(product.choice_ptr, np.arange(product.num_choices), order)
+    away = csr_matrix((np.where(loops, 0.0, t.probs), t.targets, t.indptr), shape=matrix.shape)
+    del loops
+    away = away[choices]
+    leaving = stays[choices] < 1.0 - 1e-15
+    denominator = np.where(leaving, 1.0 - stays[choices], 1.0)
+    counts = per_state[order]
+    state_start = np.concatenate([[0], np.cumsum(counts)])
     values = target.astype(np.float64)
     fixed = target | zero
-    by_level = np.argsort(level[choice_state], kind="stable")
-    level_ptr = np.searchsorted(level[choice_state][by_level], np.arange(level.max() + 2))
-    for depth in range(int(level.max()) + 1):
-        choices = by_level[level_ptr[depth] : level_ptr[depth + 1]]
-        if len(choices):
-            _solve_level(matrix, choices, choice_state, stays, size, values, fixed, n)
+    single = size == 1
+    for depth in range(len(ptr) - 1):
+        lo, hi = int(ptr[depth]), int(ptr[depth + 1])
+        states = order[lo:hi]
+        a, b = int(state_start[lo]), int(state_start[hi])
+        q_values = away[a:b] @ values
+        q_values = np.where(leaving[a:b], q_values / denominator[a:b], -1.0)
+        best = np.maximum.reduceat(q_values, state_start[lo:hi] - a)
+        if single[states].all():
+            update = ~fixed[states]
+            values[states[update]] = np.maximum(best[update], 0.0)
+        else:
+            alone = single[states] & ~fixed[states]
+            values[states[alone]] = np.maximum(best[alone], 0.0)
+            _solve_components(matrix, states[~single[states]], product, values, fixed)
     return values
 
 
-def _solve_level(
-    matrix: csr_matrix,
-    choices: IntArray,
-    choice_state: IntArray,
-    stays: FloatArray,
-    size: IntArray,
-    values: FloatArray,
-    fixed: BoolArray,
-    n: int,
+def _solve_components(
+    matrix: csr_matrix, states: IntArray, product: Product, values: FloatArray, fixed: BoolArray
 ) -> None:
-    """Fix the values of one level's states in place."""
-    owner = choice_state[choices]
+    """Value iteration from below on one layer's larger components (their exits fixed)."""
+    ptr = product.choice_ptr
+    choices = gather(ptr, np.arange(product.num_choices), states)
+    local = np.concatenate([[0], np.cumsum(ptr[states + 1] - ptr[states])])[:-1]
     rows = matrix[choices]
-    single = size[owner] == 1
-    if single.any():
-        chosen, who = choices[single], owner[single]
-        saved = values[who].copy()
-        values[who] = 0.0
-        rest = rows[single] @ values
-        values[who] = saved
-        leaving = stays[chosen] < 1.0 - 1e-15
-        best = np.full(n, -1.0)
-        np.maximum.at(best, who[leaving], rest[leaving] / (1.0 - stays[chosen][leaving]))
-        update = np.unique(who)
-        update = update[~fixed[update]]
-        values[update] = np.maximum(best[update], 0.0)
-    group = ~single
-    if group.any():
-        who, sub = owner[group], rows[group]
-        members = np.unique(who)
-        members = members[~fixed[members]]
-        for _ in range(1_000_000):
-            best = np.full(n, -1.0)
-            np.maximum.at(best, who, sub @ values)
-            new = np.maximum(best[members], 0.0)
-            change = np.max(np.abs(new - values[members])) if len(members) else 0.0
-            values[members] = new
-            if change < TOLERANCE:
-                break
+    members = ~fixed[states]
+    for _ in range(1_000_000):
+        new = np.maximum(np.maximum.reduceat(rows @ values, local), 0.0)[members]
+        change = np.max(np.abs(new - values[states[members]])) if members.any() else 0.0
+        values[states[members]] = new
+        if change < TOLERANCE:
+            break
