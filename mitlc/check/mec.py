@@ -15,55 +15,59 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from mitlc.check.topo import gather, state_graph
 from mitlc.product.explicit import VIOLATED, Product
 from mitlc.worlds.model import BoolArray, IntArray
 
 
-def _choice_sources(product: Product) -> IntArray:
-    counts = np.diff(product.choice_ptr)
-    return np.repeat(np.arange(product.num_states), counts)
-
-
-def maximal_end_components(product: Product) -> tuple[IntArray, IntArray]:
+def maximal_end_components(
+    product: Product, graph: csr_matrix | None = None
+) -> tuple[IntArray, IntArray]:
     """``(component, kept)``: each state's MEC label (``-1`` for none) and a mask of the choices
-    that stay inside their MEC."""
-    sources = _choice_sources(product)
-    per_choice = np.diff(product.transitions.indptr)
-    edge_source = np.repeat(sources, per_choice)
-    edge_choice = np.repeat(np.arange(product.num_choices), per_choice)
-    targets = product.transitions.targets
-    kept = np.ones(product.num_choices, dtype=bool)
-    alive = np.ones(product.num_states, dtype=bool)
+    that stay inside their MEC (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the
+    caller has it). The first round splits the whole state graph; later rounds only the graph
+    of the choices kept so far, which in a nearly acyclic product is small."""
     n = product.num_states
+    t = product.transitions
+    sources = np.repeat(np.arange(n), np.diff(product.choice_ptr))
+    per_choice = np.diff(t.indptr)
+    graph = state_graph(product) if graph is None else graph
+    _, labels = connected_components(graph, directed=True, connection="strong")
+    leaves = np.repeat(labels[sources], per_choice) != labels[t.targets]
+    edge_choice = np.repeat(np.arange(product.num_choices), per_choice)
+    kept = np.bincount(edge_choice[leaves], minlength=product.num_choices) == 0
+    del leaves, edge_choice
+    alive = np.zeros(n, dtype=bool)
+    alive[sources[kept]] = True
+    chosen = np.flatnonzero(kept)
     while True:
-        use = kept[edge_choice]
-        graph = csr_matrix(
-            (np.ones(int(use.sum())), (edge_source[use], targets[use])), shape=(n, n)
-        )
-        _, labels = connected_components(graph, directed=True, connection="strong")
-        labels = np.where(alive, labels, -1)
-        leaves = labels[edge_source] != labels[targets]
-        leaving = np.zeros(product.num_choices, dtype=bool)
-        np.logical_or.at(leaving, edge_choice, leaves | ~alive[targets])
-        new_kept = kept & ~leaving & alive[sources]
-        has_choice = np.zeros(n, dtype=bool)
-        has_choice[sources[new_kept]] = True
-        new_alive = alive & has_choice
-        if np.array_equal(new_kept, kept) and np.array_equal(new_alive, alive):
+        edges = gather(t.indptr, np.arange(len(t.targets)), chosen)
+        local = np.repeat(np.arange(len(chosen)), per_choice[chosen])
+        heads, tails = np.repeat(sources[chosen], per_choice[chosen]), t.targets[edges]
+        sub = csr_matrix((np.ones(len(heads)), (heads, tails)), shape=(n, n))
+        _, found = connected_components(sub, directed=True, connection="strong")
+        labels = np.where(alive, found, -1)
+        leaves = (labels[heads] != labels[tails]) | ~alive[tails]
+        stay = (np.bincount(local[leaves], minlength=len(chosen)) == 0) & alive[sources[chosen]]
+        new_alive = np.zeros(n, dtype=bool)
+        new_alive[sources[chosen[stay]]] = True
+        new_alive &= alive
+        if stay.all() and np.array_equal(new_alive, alive):
             return labels, kept
-        kept, alive = new_kept, new_alive
+        kept[chosen[~stay]] = False
+        chosen, alive = chosen[stay], new_alive
 
 
-def accepting_states(product: Product) -> BoolArray:
+def accepting_states(product: Product, graph: csr_matrix | None = None) -> BoolArray:
     """The states that lie in an accepting maximal end component (a boolean mask)."""
-    labels, kept = maximal_end_components(product)
-    sources = _choice_sources(product)
+    labels, kept = maximal_end_components(product, graph)
+    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
     all_sets = (1 << product.num_sets) - 1
-    covered: dict[int, int] = {}
-    for c in np.flatnonzero(kept).tolist():
-        label = int(labels[sources[c]])
-        covered[label] = covered.get(label, 0) | int(product.marks[c])
-    good = {label for label, marks in covered.items() if marks == all_sets}
-    good.discard(int(labels[VIOLATED]))
-    mask: BoolArray = np.isin(labels, list(good)) & (labels >= 0)
+    chosen = np.flatnonzero(kept)
+    covered = np.zeros(product.num_states, dtype=np.int64)
+    np.bitwise_or.at(covered, labels[sources[chosen]], product.marks[chosen].astype(np.int64))
+    good = covered == all_sets
+    if labels[VIOLATED] >= 0:
+        good[labels[VIOLATED]] = False
+    mask: BoolArray = (labels >= 0) & good[labels]
     return mask
