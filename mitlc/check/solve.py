@@ -14,16 +14,14 @@
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix, identity
-from scipy.sparse.csgraph import breadth_first_order
+from scipy.sparse import csc_matrix, csr_matrix, identity
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
-from mitlc.check.topo import topological_values
+from mitlc.check.topo import gather, state_graph, topological_values
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -56,32 +54,34 @@ def _best(product: Product, q_values: FloatArray) -> tuple[FloatArray, IntArray]
     return values, first
 
 
-def _reach_policy(
-    product: Product, matrix: csr_matrix, values: FloatArray, target: BoolArray
-) -> IntArray:
-    """Among the optimal choices, one per state that makes progress towards ``target``: a
-    backward breadth-first search from the target over the edges of optimal choices."""
+def _backward_search(
+    product: Product, into: csc_matrix, allowed: BoolArray, target: BoolArray
+) -> tuple[BoolArray, IntArray]:
+    """Breadth-first search backwards from ``target`` along the ``allowed`` choices, a whole
+    frontier at a time (``into``: the choice matrix in compressed columns, so column ``y``
+    lists the choices that may reach ``y``). Returns the states found (``target`` included)
+    and, for each found state outside ``target``, a choice that may reach a state found one
+    step earlier (the other states keep their first choice)."""
     ptr = product.choice_ptr
     sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
-    optimal = (matrix @ values) >= values[sources] - 1e-9
     policy = ptr[:-1].copy()
     done = target.copy()
-    t = product.transitions
-    edge_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
-    keep = optimal[edge_choice]
-    order = np.argsort(t.targets[keep], kind="stable")
-    by_target = edge_choice[keep][order]
-    starts = np.searchsorted(t.targets[keep][order], np.arange(product.num_states + 1))
-    queue = deque(np.flatnonzero(target).tolist())
-    while queue:
-        y = queue.popleft()
-        for c in by_target[starts[y] : starts[y + 1]].tolist():
-            x = int(sources[c])
-            if not done[x]:
-                done[x] = True
-                policy[x] = c
-                queue.append(x)
-    return policy
+    frontier = np.flatnonzero(target)
+    slot = np.zeros(product.num_states, dtype=np.int64)
+    into_ptr = into.indptr.astype(np.int64)
+    while len(frontier):
+        choices = gather(into_ptr, into.indices, frontier)
+        choices = choices[allowed[choices]]
+        states = sources[choices]
+        new = ~done[states]
+        choices, states = choices[new], states[new]
+        index = np.arange(len(states))
+        slot[states] = index
+        first = slot[states] == index  # one choice per state
+        frontier = states[first]
+        policy[frontier] = choices[first]
+        done[frontier] = True
+    return done, policy
 
 
 def _evaluate(
@@ -118,21 +118,27 @@ def _solve_chain(sub: csr_matrix, rhs: FloatArray) -> FloatArray:
     return np.asarray(spsolve(identity_minus, rhs))
 
 
-def max_reach(product: Product, target: BoolArray) -> Solution:
-    """The maximal probability of reaching ``target`` from every state, and a policy for it."""
+def max_reach(product: Product, target: BoolArray, graph: csr_matrix | None = None) -> Solution:
+    """The maximal probability of reaching ``target`` from every state, and a policy for it
+    (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the caller has it)."""
     matrix = _choice_matrix(product)
-    can_reach = _backward_reach(product, target)
+    into = matrix.tocsc()
+    can_reach, _ = _backward_search(product, into, np.ones(product.num_choices, bool), target)
     zero = ~can_reach
-    values = topological_values(product, matrix, target, zero)
+    values = topological_values(product, matrix, target, zero, graph)
     sweeps = 0
     for sweeps in range(1, 100_001):  # noqa: B007 - the count says whether the seed was exact
-        new = np.maximum.reduceat(matrix @ values, product.choice_ptr[:-1])
+        q_values = matrix @ values
+        new = np.maximum.reduceat(q_values, product.choice_ptr[:-1])
         new = np.where(target, 1.0, np.where(zero, 0.0, new))
         if np.max(np.abs(new - values)) < TOLERANCE:
             values = new
             break
         values = new
-    policy = _reach_policy(product, matrix, values, target)
+    # Among the optimal choices, one per state that makes progress towards the target, so that
+    # no optimal choice loops forever away from it.
+    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
+    _, policy = _backward_search(product, into, q_values >= values[sources] - 1e-9, target)
     if sweeps == 1:
         # The topological values are already the Bellman fixpoint reached from below, and the
         # policy climbs to the target along optimal choices: nothing for policy iteration to do.
@@ -148,25 +154,10 @@ def max_reach(product: Product, target: BoolArray) -> Solution:
     return Solution(np.clip(values, 0.0, 1.0), policy)
 
 
-def _backward_reach(product: Product, target: BoolArray) -> BoolArray:
-    """The states from which some path reaches ``target``: a breadth-first search backwards
-    from a virtual node joined to every target state."""
-    n = product.num_states
-    sources = np.repeat(np.arange(n), np.diff(product.choice_ptr))
-    edge_source = np.repeat(sources, np.diff(product.transitions.indptr))
-    goals = np.flatnonzero(target)
-    rows = np.concatenate([product.transitions.targets, np.full(len(goals), n)])
-    cols = np.concatenate([edge_source, goals])
-    backwards = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
-    reached = np.zeros(n + 1, dtype=bool)
-    reached[breadth_first_order(backwards, n, directed=True, return_predecessors=False)] = True
-    result: BoolArray = reached[:n] | target
-    return result
-
-
 def pmax(product: Product) -> Solution:
     """The maximal probability of satisfying the formula (accepting MECs, then reachability)."""
-    return max_reach(product, accepting_states(product))
+    graph = state_graph(product)
+    return max_reach(product, accepting_states(product, graph), graph)
 
 
 def pmax_horizon(
