@@ -22,6 +22,7 @@ from mitlc.automata.artifact import from_data, to_json
 from mitlc.automata.dot import render, to_dot, write_atomically
 from mitlc.automata.hoa import to_hoa, to_hoa_stream
 from mitlc.automata.runs import run_states
+from mitlc.cli_learn import register as register_learning
 from mitlc.errors import MitlcError, SourceLocation, SpecError
 from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
 from mitlc.syntax.tree import tree_text
@@ -368,6 +369,9 @@ def _main(
     ] = False,
 ) -> None:
     """Compile, check and learn time-bounded robot tasks written in MITL."""
+
+
+register_learning(app, _reports_errors)
 
 
 def main() -> None:

@@ -24,6 +24,7 @@ from mitlc.errors import MitlcError
 
 ALGORITHMS = ("q", "dqn", "drqn")
 Algorithm = Literal["q", "dqn", "drqn"]
+DEFAULT_EPISODES = {"q": 300_000, "dqn": 5_000, "drqn": 20_000}
 
 
 class ConfigError(MitlcError):
@@ -47,16 +48,18 @@ class Discount:
 class QConfig:
     """Tabular Q-learning over (frontier, product state) pairs."""
 
-    num_envs: int = 256
-    alpha: float = 0.1
+    num_envs: int = 1024
+    alpha: float = 0.5
     """The learning rate at the start."""
-    alpha_end: float = 0.1
+    alpha_end: float = 0.01
     """The learning rate at the end; it falls linearly over the run."""
     epsilon_start: float = 1.0
-    epsilon_end: float = 0.02
+    epsilon_end: float = 0.1
     epsilon_decay: float = 0.6
     """The fraction of the episodes over which epsilon falls linearly to ``epsilon_end``."""
-    initial_value: float = 0.0
+    initial_value: float = 100.0
+    """Optimistic when at least the largest return (the paper's rewards are 100): untried
+    actions look good, which drives exploration to the rare successes of a timed task."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +83,8 @@ class DQNConfig:
     epsilon_end: float = 0.02
     epsilon_decay: float = 0.5
     grad_clip: float = 10.0
+    reward_scale: float = 0.01
+    """The network learns the learning signal times this (Q values near 1 suit the Huber loss)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,6 +110,10 @@ class DRQNConfig:
     epsilon_end: float = 0.02
     epsilon_decay: float = 0.5
     grad_clip: float = 10.0
+    reward_scale: float = 0.01
+    """The network learns the learning signal times this (Q values near 1 suit the Huber loss)."""
+    previous_action: bool = True
+    """Feed the previous action (one-hot) to the recurrent cell with the observation."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,11 +122,13 @@ class TrainConfig:
 
     algo: Algorithm = "q"
     seed: int = 0
-    episodes: int = 20_000
-    log_every: int = 1_000
-    """Episodes between lines of ``metrics.jsonl``."""
-    checkpoint_every: int = 5_000
-    """Episodes between checkpoints (one is also written at the end and on interruption)."""
+    episodes: int = 300_000
+    """Default: ``DEFAULT_EPISODES[algo]``."""
+    log_every: int = 3_000
+    """Episodes between lines of ``metrics.jsonl`` (default: a hundredth of the episodes)."""
+    checkpoint_every: int = 30_000
+    """Episodes between checkpoints, also written at the end and on interruption (default: a
+    tenth of the episodes)."""
     eval_episodes: int = 10_000
     discount: Discount = field(default_factory=Discount)
     shaping: float = 0.0
@@ -254,6 +265,13 @@ def resolve(
     values = _merge(_merge(base, training), _nest(overrides))
     if not isinstance(values.get("discount"), Mapping):
         raise ConfigError(f"training.discount: expected a mapping, got {values['discount']!r}")
+    algo = values.get("algo")
+    if algo in DEFAULT_EPISODES and "episodes" not in values:
+        values["episodes"] = DEFAULT_EPISODES[algo]
+    episodes = _coerce(values["episodes"], int, "training.episodes") if "episodes" in values else 0
+    if episodes > 0:
+        values.setdefault("log_every", max(1, episodes // 100))
+        values.setdefault("checkpoint_every", max(1, episodes // 10))
     try:
         return _build(TrainConfig, values, "")
     except ConfigError as err:

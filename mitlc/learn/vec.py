@@ -212,7 +212,8 @@ class VecProduct:
     def step(self, actions: IntArray) -> Step:
         """Take ``actions[i]`` in episode ``i`` (each must be valid); restart ended episodes."""
         t = self.tables
-        choice = t.choice[self.state, actions]
+        inside = (actions >= 0) & (actions < t.num_actions)
+        choice = np.where(inside, t.choice[self.state, np.where(inside, actions, 0)], -1)
         if (choice < 0).any():
             bad = int(np.flatnonzero(choice < 0)[0])
             raise ValueError(f"action {int(actions[bad])} is not valid in episode {bad}")

@@ -1,0 +1,271 @@
+"""The learning commands of ``mitlc``: ``train``, ``eval`` and ``plot`` (registered on the
+app by :mod:`mitlc.cli`, which owns error reporting)."""
+
+from __future__ import annotations
+
+import json
+import signal
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+from typing import Annotated, Any
+
+import typer
+
+from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
+from mitlc.learn.run import CONFIG, RunError, read_config
+from mitlc.worlds import read_world_file
+
+RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mitlc train).")]
+
+
+def _overrides(
+    pairs: list[str], algo: str | None, seed: int | None, episodes: int | None
+) -> dict[str, Any]:
+    values: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise RunError(f"--set {pair!r}: expected KEY=VALUE, e.g. --set q.alpha=0.2")
+        values[key.strip()] = value.strip()
+    given: tuple[tuple[str, object], ...] = (("algo", algo), ("seed", seed), ("episodes", episodes))
+    for key, value in given:
+        if value is not None:
+            values[key] = value
+    return values
+
+
+def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, str]:
+    """The run's settings and the world's name."""
+    raw = read_world_file(world_file)
+    config = resolve(
+        raw.training, overrides, discount=raw.discount, pomdp=raw.observation is not None
+    )
+    return config, raw.name or world_file.stem
+
+
+class _StopFlag:
+    """Ctrl-C asks the run to stop (it checkpoints first); a second Ctrl-C stops at once."""
+
+    def __init__(self) -> None:
+        self.raised = False
+        self._previous: Any = None
+
+    def __enter__(self) -> _StopFlag:
+        self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        signal.signal(signal.SIGINT, self._previous)
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.raised:
+            raise KeyboardInterrupt
+        self.raised = True
+
+    def __call__(self) -> bool:
+        return self.raised
+
+
+def _progress_display(quiet: bool) -> Any:
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("success {task.fields[success]:.3f}  return {task.fields[ret]:.1f}"),
+        TextColumn("ε {task.fields[epsilon]:.3f}"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        disable=quiet,
+        transient=False,
+    )
+
+
+def train_command(
+    world_file: Annotated[Path, typer.Argument(metavar="WORLD", help="A world file (YAML).")],
+    algo: Annotated[
+        str | None, typer.Option("--algo", help=f"One of {', '.join(ALGORITHMS)}.")
+    ] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="The run's seed.")] = None,
+    episodes: Annotated[
+        int | None, typer.Option("--episodes", help="Episodes to train (in all).")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="The run directory (default: runs/WORLD-ALGO-sSEED)."),
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Continue the run in --out from its checkpoint.")
+    ] = False,
+    spec: Annotated[
+        str | None, typer.Option("--spec", help="A spec file instead of the world's task.")
+    ] = None,
+    settings: Annotated[
+        list[str] | None,
+        typer.Option("--set", metavar="KEY=VALUE", help="A training setting, e.g. q.alpha=0.2."),
+    ] = None,
+    evaluate_after: Annotated[
+        bool, typer.Option("--eval/--no-eval", help="Evaluate the policy at the end.")
+    ] = True,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+) -> None:
+    """Learn a policy for a world's task; report it beside the exact optimum."""
+    from mitlc.learn.run import train
+
+    if resume and out is not None and (out / CONFIG).is_file():
+        _, saved = read_config(out)
+        config, name = _config(
+            world_file, {**_flatten(saved), **_overrides(settings or [], algo, seed, episodes)}
+        )
+    else:
+        config, name = _config(world_file, _overrides(settings or [], algo, seed, episodes))
+    if resume and out is None:
+        raise RunError("--resume needs --out: the run directory to continue")
+    directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"
+    formula = None
+    if spec is not None:
+        from mitlc.cli import load_formula
+        from mitlc.syntax import to_text
+
+        formula = to_text(load_formula(spec, None))
+    with _StopFlag() as stop, _progress_display(quiet) as display:
+        task = display.add_task(
+            f"{config.algo} {name}", total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
+        )
+
+        def show(p: Any) -> None:
+            display.update(
+                task,
+                completed=min(p.episodes, p.total),
+                success=p.success_rate,
+                ret=p.mean_return,
+                epsilon=p.epsilon,
+            )
+
+        result = train(
+            world_file,
+            config,
+            directory,
+            spec=formula,
+            resume=resume,
+            progress=show,
+            should_stop=stop,
+        )
+    if result.stopped:
+        typer.echo(
+            f"stopped at episode {result.episodes:,}; checkpoint saved. Continue with:\n"
+            f"  mitlc train {world_file} --out {directory} --resume",
+            err=True,
+        )
+        raise typer.Exit(130)
+    typer.echo(
+        f"trained {result.episodes:,} episodes ({result.steps:,} steps) in "
+        f"{result.seconds:.1f} s -> {directory}"
+    )
+    if evaluate_after:
+        _print_evaluation(directory, None, 12345, as_json=False, bounds=False)
+
+
+def _flatten(config: TrainConfig) -> dict[str, Any]:
+    """A saved run's settings as dotted overrides (what ``--resume`` starts from)."""
+    from mitlc.learn.config import to_data
+
+    flat: dict[str, Any] = {}
+
+    def walk(prefix: str, data: dict[str, Any]) -> None:
+        for key, value in data.items():
+            if isinstance(value, dict):
+                walk(f"{prefix}{key}.", value)
+            else:
+                flat[f"{prefix}{key}"] = value
+
+    walk("", to_data(config))
+    return flat
+
+
+def _print_evaluation(
+    directory: Path, episodes: int | None, seed: int, *, as_json: bool, bounds: bool
+) -> None:
+    from mitlc.learn.evaluate import evaluate
+
+    report = evaluate(directory, episodes=episodes, seed=seed, pomdp_bounds=bounds)
+    data = report.summary()
+    if as_json:
+        typer.echo(json.dumps(data, indent=2, sort_keys=True))
+        return
+    low, high = report.interval
+    rows = [
+        (
+            "learned success",
+            f"{report.success_rate:.4f}  95% [{low:.4f}, {high:.4f}]  "
+            f"({report.successes:,}/{report.episodes:,} episodes)",
+        ),
+    ]
+    if report.exact is not None:
+        rows.append(("learned, exact", f"{report.exact:.6f}"))
+    kind = "fully observable upper bound" if report.pomdp else "optimum"
+    rows.append((kind, f"{report.optimum:.6f}"))
+    if report.optimum > 0:
+        shown = report.exact if report.exact is not None else report.success_rate
+        rows.append(("ratio", f"{shown / report.optimum:.4f}"))
+    if report.bounds is not None:
+        rows.append(
+            ("Storm bounds", f"[{report.bounds['lower']:.6f}, {report.bounds['upper']:.6f}]")
+        )
+    rows.append(("mean return", f"{report.mean_return:.2f}"))
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        typer.echo(f"{key:<{width}}  {value}")
+
+
+def eval_command(
+    run: RunArg,
+    episodes: Annotated[
+        int | None, typer.Option("--episodes", help="Episodes (default: the run's setting).")
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="The evaluation's seed.")] = 12345,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
+    pomdp_bounds: Annotated[
+        bool,
+        typer.Option("--pomdp-bounds", help="For a POMDP, add Storm's belief bounds (slow)."),
+    ] = False,
+) -> None:
+    """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
+    if episodes is not None and episodes <= 0:
+        raise RunError("--episodes must be positive")
+    _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds)
+
+
+def plot_command(
+    run: RunArg,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Where to write the PNGs (default: RUN).")
+    ] = None,
+    trajectories: Annotated[
+        int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
+    ] = 5,
+) -> None:
+    """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
+    from mitlc.learn.plot import plot_run
+
+    read_config(run)
+    for path in plot_run(run, out, trajectories=trajectories):
+        typer.echo(str(path))
+
+
+def register(app: typer.Typer, reports_errors: Callable[[Any], Any]) -> None:
+    """Add the learning commands to ``app``."""
+    app.command(name="train")(reports_errors(train_command))
+    app.command(name="eval")(reports_errors(eval_command))
+    app.command(name="plot")(reports_errors(plot_command))
