@@ -28,10 +28,8 @@ def _overrides(
         if not sep or not key:
             raise RunError(f"--set {pair!r}: expected KEY=VALUE, e.g. --set q.alpha=0.2")
         values[key.strip()] = value.strip()
-    given: tuple[tuple[str, object], ...] = (("algo", algo), ("seed", seed), ("episodes", episodes))
-    for key, value in given:
-        if value is not None:
-            values[key] = value
+    given: dict[str, object] = {"algo": algo, "seed": seed, "episodes": episodes}
+    values.update({name: v for name, v in given.items() if v is not None})
     return values
 
 
