@@ -253,12 +253,13 @@ def plot_command(
     trajectories: Annotated[
         int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
     ] = 5,
+    seed: Annotated[int, typer.Option("--seed", help="The trajectories' seed.")] = 0,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
     from mitlc.learn.plot import plot_run
 
     read_config(run)
-    for path in plot_run(run, out, trajectories=trajectories):
+    for path in plot_run(run, out, trajectories=trajectories, seed=seed):
         typer.echo(str(path))
 
 

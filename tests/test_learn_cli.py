@@ -1,0 +1,105 @@
+"""The learning commands: mitlc train and mitlc eval, their files and their errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from mitlc.cli import app
+from tests.conftest import ROOT
+
+runner = CliRunner()
+CASE1 = str(ROOT / "specs" / "paper" / "case1.yaml")
+SMALL = ["--episodes", "3000", "--set", "q.num_envs=64", "--quiet"]
+
+
+def test_train_writes_a_run_and_reports_it_beside_the_optimum(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["train", CASE1, "--out", str(out), *SMALL])
+    assert result.exit_code == 0, result.output
+    assert "optimum          0.974021" in result.output and "learned, exact" in result.output
+    assert {p.name for p in out.iterdir()} == {
+        "config.json",
+        "metrics.jsonl",
+        "checkpoint.pkl",
+        "summary.json",
+    }
+    config = json.loads((out / "config.json").read_text())
+    assert config["train"]["q"]["num_envs"] == 64 and config["train"]["episodes"] == 3000
+    assert "(!a U[5,10] a) & (!b U[15,20] b)" in config["spec"]
+    lines = (out / "metrics.jsonl").read_text().splitlines()
+    assert len(lines) >= 50 and json.loads(lines[-1])["episodes"] >= 3000
+    report = runner.invoke(app, ["eval", str(out), "--episodes", "2000", "--json"])
+    assert report.exit_code == 0, report.output
+    data = json.loads(report.output)
+    assert data["episodes"] == 2000 and data["optimum_kind"] == "exact"
+    assert data["interval95"][0] <= data["success_rate"] <= data["interval95"][1]
+
+
+def test_train_refuses_to_overwrite_and_resumes(tmp_path: Path) -> None:
+    out = str(tmp_path / "run")
+    assert runner.invoke(app, ["train", CASE1, "--out", out, *SMALL, "--no-eval"]).exit_code == 0
+    again = runner.invoke(app, ["train", CASE1, "--out", out, *SMALL])
+    assert again.exit_code == 1 and "a run is already there (use --resume" in again.output
+    more = runner.invoke(
+        app, ["train", CASE1, "--out", out, "--resume", "--episodes", "4000", "-q", "--no-eval"]
+    )
+    assert more.exit_code == 0, more.output
+    assert "trained 4,0" in more.output
+
+
+def test_errors_exit_1_without_a_traceback(tmp_path: Path) -> None:
+    cases = [
+        (["train", CASE1, "--set", "q.alpah=1"], "training.q.alpah: unknown setting"),
+        (["train", CASE1, "--set", "alpha"], "expected KEY=VALUE"),
+        (["train", CASE1, "--algo", "ppo"], "training.algo: expected one of q, dqn, drqn"),
+        (["train", str(tmp_path / "none.yaml")], "none.yaml"),
+        (["train", CASE1, "--resume"], "--resume needs --out"),
+        (["eval", str(tmp_path)], "not a run directory (no config.json)"),
+        (["eval", str(tmp_path), "--episodes", "0"], "--episodes must be positive"),
+    ]
+    for args, message in cases:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 1, (args, result.output)
+        assert message in result.output, (args, result.output)
+        assert "Traceback" not in result.output
+
+
+def test_ctrl_c_checkpoints_and_resume_finishes(tmp_path: Path) -> None:
+    """A real SIGINT to a running `mitlc train`: it saves a checkpoint, says how to go on,
+    exits 130; --resume then finishes the run."""
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "mitlc", "train", CASE1, "--out", str(out), "--quiet"]
+    process = subprocess.Popen(
+        [*args, "--episodes", "50000000", "--set", "log_every=1000", "--no-eval"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    deadline = time.monotonic() + 60
+    while not (out / "config.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.5)
+    os.kill(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "checkpoint saved" in err and "--resume" in err
+    assert (out / "checkpoint.pkl").exists() and not (out / "summary.json").exists()
+    stopped = json.loads((out / "metrics.jsonl").read_text().splitlines()[-1])["episodes"]
+    done = subprocess.run(
+        [*args, "--resume", "--episodes", str(stopped + 2000), "--no-eval"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "summary.json").read_text())["episodes"] >= stopped + 2000
