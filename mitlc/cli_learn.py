@@ -78,7 +78,7 @@ def _progress_display(quiet: bool) -> Any:
 
     return Progress(
         TextColumn("[bold]{task.description}"),
-        BarColumn(),
+        BarColumn(bar_width=24),
         MofNCompleteColumn(),
         TextColumn("success {task.fields[success]:.3f}  return {task.fields[ret]:.1f}"),
         TextColumn("ε {task.fields[epsilon]:.3f}"),
