@@ -15,7 +15,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from mitlc.check.topo import gather, state_graph
+from mitlc.check.topo import spans, state_graph
 from mitlc.product.explicit import VIOLATED, Product
 from mitlc.worlds.model import BoolArray, IntArray
 
@@ -41,7 +41,7 @@ def maximal_end_components(
     alive[sources[kept]] = True
     chosen = np.flatnonzero(kept)
     while True:
-        edges = gather(t.indptr, np.arange(len(t.targets)), chosen)
+        edges = spans(t.indptr, chosen)
         local = np.repeat(np.arange(len(chosen)), per_choice[chosen])
         heads, tails = np.repeat(sources[chosen], per_choice[chosen]), t.targets[edges]
         sub = csr_matrix((np.ones(len(heads)), (heads, tails)), shape=(n, n))

@@ -21,7 +21,7 @@ from scipy.sparse import csc_matrix, csr_matrix, identity
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
-from mitlc.check.topo import gather, state_graph, topological_values
+from mitlc.check.topo import gather, spans, state_graph, topological_values
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -160,52 +160,91 @@ def pmax(product: Product) -> Solution:
     return max_reach(product, accepting_states(product, graph), graph)
 
 
+FULL_STEP = 0.25
+"""``pmax_horizon`` recomputes every state, in one sparse product per mask, when more than this
+share of the states must be recomputed."""
+
+
 def pmax_horizon(
     product: Product, horizon: int, *, keep_history: bool = True
 ) -> tuple[float, list[FloatArray]]:
     """The maximal probability of success within ``horizon`` steps from the initial state, and
     the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen), all
     ``horizon + 1`` of them (what a time-dependent policy needs), or with ``keep_history`` off
-    only the last (the memory of one table instead of ``horizon + 1``)."""
-    all_sets = (1 << product.num_sets) - 1
+    only the last (the memory of one table instead of ``horizon + 1``).
+
+    Each step recomputes only the states with a choice into a state whose values changed in
+    the step before (in a product of a time-bounded task most values settle once the clock
+    has run out, so a step touches a few percent of the states); the others keep their values,
+    which is exactly what a full step would give them. The matrix of a mask reads the values
+    of the mask ``mask | marks[c]`` that choice ``c`` moves to from the whole table at once."""
+    masks = 1 << product.num_sets
     n = product.num_states
-    matrix = _choice_matrix(product)
+    t = product.transitions
     ptr = product.choice_ptr
+    sources = np.repeat(np.arange(n), np.diff(ptr))
+    sizes = np.diff(t.indptr)
     jumps = np.flatnonzero(product.action < 0)
-    jump_sources = np.repeat(np.arange(n), np.diff(ptr))[jumps]
-    jump_targets = product.transitions.targets[product.transitions.indptr[jumps]]
-    values = np.zeros((all_sets + 1, n))
-    values[all_sets, :] = 1.0
-    history = [_settle(values, jump_sources, jump_targets)]
-    world = product.action >= 0
-    groups: list[list[tuple[IntArray, csr_matrix, int]]] = []  # per mask: (choices, rows, after)
-    for mask in range(all_sets + 1):
-        seen = mask | product.marks
-        groups.append(
-            [
-                (chosen, matrix[chosen], after)
-                for after in np.unique(seen).tolist()
-                for chosen in [np.flatnonzero((seen == after) & world)]
-            ]
+    probs = np.where(np.repeat(product.action >= 0, sizes), t.probs, 0.0)
+    matrices = [
+        csr_matrix(
+            (probs, t.targets + np.repeat((mask | product.marks) * n, sizes), t.indptr),
+            shape=(product.num_choices, masks * n),
         )
+        for mask in range(masks)
+    ]
+    into = _choice_matrix(product).tocsc()
+    into_ptr = into.indptr.astype(np.int64)
+    jump_sources = sources[jumps]
+    jump_targets = t.targets[t.indptr[jumps]]
+    fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
+    raw = np.zeros((masks, n))
+    raw[masks - 1, :] = 1.0
+    table = raw.copy()
+    _settle(table, jump_sources, jump_targets)
+    history = [table.copy()]
+    slot = np.zeros(n, dtype=np.int64)
+    dirty = np.arange(n)
     for _ in range(horizon):
-        step = np.full((all_sets + 1, n), -1.0)
-        for mask in range(all_sets + 1):
-            q_values = np.full(product.num_choices, -1.0)
-            for chosen, rows, after in groups[mask]:
-                q_values[chosen] = rows @ history[-1][after]
-            step[mask] = np.maximum.reduceat(q_values, ptr[:-1])
-        history.append(_settle(step, jump_sources, jump_targets))
-        if not keep_history:
-            del history[:-1]
-    return float(history[-1][0, product.initial]), history
+        flat = table.ravel()
+        if len(dirty) > FULL_STEP * n:
+            dirty = np.arange(n)
+            for mask, matrix in enumerate(matrices):
+                q_values = matrix @ flat
+                q_values[jumps] = -1.0
+                raw[mask] = np.maximum.reduceat(q_values, ptr[:-1])
+        else:
+            choices = spans(ptr, dirty)
+            starts = np.concatenate([[0], np.cumsum(ptr[dirty + 1] - ptr[dirty])])[:-1]
+            world = product.action[choices] >= 0
+            for mask, matrix in enumerate(matrices):
+                q_values = np.where(world, matrix[choices] @ flat, -1.0)
+                raw[mask, dirty] = np.maximum.reduceat(q_values, starts)
+        columns = _distinct(np.concatenate([dirty, fixed]), slot)
+        before = table[:, columns]
+        table[:, columns] = raw[:, columns]
+        _settle(table, jump_sources, jump_targets)
+        changed = columns[(table[:, columns] != before).any(axis=0)]
+        dirty = _distinct(sources[gather(into_ptr, into.indices, changed)], slot)
+        if keep_history:
+            history.append(table.copy())
+    if not keep_history:
+        history = [table]
+    return float(table[0, product.initial]), history
 
 
-def _settle(values: FloatArray, jump_sources: IntArray, jump_targets: IntArray) -> FloatArray:
-    """Absorbing outcomes, then epsilon jumps (which take no step) from their sources."""
-    values = values.copy()
+def _distinct(keys: IntArray, slot: IntArray) -> IntArray:
+    """``keys`` without repeats, in no particular order (``slot``: scratch, one per key)."""
+    index = np.arange(len(keys))
+    slot[keys] = index
+    distinct: IntArray = keys[slot[keys] == index]
+    return distinct
+
+
+def _settle(values: FloatArray, jump_sources: IntArray, jump_targets: IntArray) -> None:
+    """Absorbing outcomes, then epsilon jumps (which take no step) from their sources, in
+    place."""
     values[:, SATISFIED] = 1.0
     values[:, VIOLATED] = 0.0
     for source, target in zip(jump_sources.tolist(), jump_targets.tolist(), strict=True):
         values[:, source] = np.maximum(values[:, source], values[:, target])
-    return values

@@ -36,11 +36,17 @@ def state_graph(product: Product) -> csr_matrix:
     return graph
 
 
-def gather(ptr: IntArray, values: IntArray, keys: IntArray) -> IntArray:
-    """``concatenate(values[ptr[k]:ptr[k+1]] for k in keys)``, vectorised."""
+def spans(ptr: IntArray, keys: IntArray) -> IntArray:
+    """``concatenate(arange(ptr[k], ptr[k+1]) for k in keys)``, vectorised."""
     counts = ptr[keys + 1] - ptr[keys]
     starts = np.repeat(ptr[keys] - np.cumsum(counts) + counts, counts)
-    gathered: IntArray = values[starts + np.arange(int(counts.sum()))]
+    indices: IntArray = starts + np.arange(int(counts.sum()))
+    return indices
+
+
+def gather(ptr: IntArray, values: IntArray, keys: IntArray) -> IntArray:
+    """``concatenate(values[ptr[k]:ptr[k+1]] for k in keys)``, vectorised."""
+    gathered: IntArray = values[spans(ptr, keys)]
     return gathered
 
 
@@ -127,7 +133,7 @@ def _solve_layers(
     stays = np.bincount(edge_choice[loops], weights=t.probs[loops], minlength=product.num_choices)
     del edge_choice
     # The choices in layer order (each state's choices together), with self-loops left out.
-    choices = gather(product.choice_ptr, np.arange(product.num_choices), order)
+    choices = spans(product.choice_ptr, order)
     away = csr_matrix((np.where(loops, 0.0, t.probs), t.targets, t.indptr), shape=matrix.shape)
     del loops
     away = away[choices]
@@ -160,7 +166,7 @@ def _solve_components(
 ) -> None:
     """Value iteration from below on one layer's larger components (their exits fixed)."""
     ptr = product.choice_ptr
-    choices = gather(ptr, np.arange(product.num_choices), states)
+    choices = spans(ptr, states)
     local = np.concatenate([[0], np.cumsum(ptr[states + 1] - ptr[states])])[:-1]
     rows = matrix[choices]
     members = ~fixed[states]
