@@ -305,3 +305,10 @@ def test_measured_success_matches_the_policys_exact_value(tmp_path: Path) -> Non
     error = np.sqrt(report.exact * (1 - report.exact) / 20_000)
     assert abs(report.success_rate - report.exact) < 4.5 * error
     assert report.optimum == pytest.approx(0.974021, abs=1e-6)
+
+
+def test_learners_of_the_true_cell_refuse_a_pomdp(tmp_path: Path) -> None:
+    case2 = ROOT / "specs" / "paper" / "case2.yaml"
+    for algo in ("q", "dqn"):
+        with pytest.raises(RunError, match=f"{algo} learns on the true cell.*use drqn"):
+            train(case2, config(Q_SMALL, algo=algo), tmp_path / algo)

@@ -101,12 +101,15 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     """The learner ``setting.config.algo`` names (the deep ones import torch)."""
     config = setting.config
     phi = potential(setting.tables, setting.automaton, config.shaping) if config.shaping else None
+    if setting.world.is_pomdp and config.algo != "drqn":
+        raise RunError(
+            f"{config.algo} learns on the true cell, which a POMDP's agent does not see: use "
+            "drqn on this world"
+        )
     if config.algo == "q":
         from mitlc.learn.qlearning import QLearner
 
         return QLearner(setting.tables, config, rng, phi)
-    if setting.world.is_pomdp and config.algo == "dqn":
-        raise RunError("dqn sees the true cell; on a POMDP world use drqn (or q on the product)")
     if config.algo == "dqn":
         from mitlc.learn.dqn import DQNLearner
 
