@@ -85,6 +85,9 @@ class DQNConfig:
     grad_clip: float = 10.0
     reward_scale: float = 0.01
     """The network learns the learning signal times this (Q values near 1 suit the Huber loss)."""
+    initial_value: float = 0.0
+    """The value every action starts at, in reward units (the output layer's bias; its weights
+    start small): optimism drives exploration toward rarely tried actions."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +115,9 @@ class DRQNConfig:
     grad_clip: float = 10.0
     reward_scale: float = 0.01
     """The network learns the learning signal times this (Q values near 1 suit the Huber loss)."""
+    initial_value: float = 0.0
+    """The value every action starts at, in reward units (the output layer's bias; its weights
+    start small): optimism drives exploration toward rarely tried actions."""
     previous_action: bool = True
     """Feed the previous action (one-hot) to the recurrent cell with the observation."""
 

@@ -1,0 +1,224 @@
+"""Deep Q-learning on the product of an MDP (Mnih et al., "Human-level control through deep
+reinforcement learning", Nature 2015), optionally Double DQN (van Hasselt, Guez and Silver,
+"Deep reinforcement learning with double Q-learning", AAAI 2016).
+
+The network maps what the agent sees (the cell, the automaton state and the frontier mask, see
+:class:`mitlc.learn.nets.Encoder`) to a value per action. Acting is epsilon-greedy over the
+valid actions of each episode (the automaton state decides which epsilon jumps exist). Every
+transition of the batch goes to a uniform replay memory; every ``train_every`` vector steps a
+minibatch moves the network toward ``r + gamma * Q_target(next, best valid action)`` (0 after a
+terminal step; a truncated episode still bootstraps, as the horizon is not part of the state)
+under the Huber loss, with the gradient norm clipped; the target network copies the online one
+every ``target_update`` gradient steps. ``r`` and ``gamma`` are the learning signal of
+:func:`mitlc.learn.base.learning_signal` (discount per transition, optional shaping), times
+``reward_scale``.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import torch
+
+from mitlc.learn.base import Learner, Policy, epsilon_at, learning_signal, random_valid
+from mitlc.learn.config import DQNConfig, TrainConfig
+from mitlc.learn.nets import (
+    Encoder,
+    Ring,
+    bootstrap,
+    build,
+    configure_torch,
+    gradient_step,
+    greedy,
+    huber,
+    mlp,
+    optimistic,
+    tensors,
+    torch_seed,
+)
+from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.worlds.model import FloatArray, IntArray
+
+
+class DQNPolicy(Policy):
+    """Greedy in a frozen copy of the Q network, over the valid actions."""
+
+    def __init__(self, tables: Tables, encoder: Encoder, net: torch.nn.Module) -> None:
+        self.tables, self.encoder, self.net = tables, encoder, net
+
+    def values(self, observation: IntArray, automaton: IntArray, mask: IntArray) -> torch.Tensor:
+        """The network's action values for these inputs."""
+        with torch.no_grad():
+            values: torch.Tensor = self.net(self.encoder(observation, automaton, mask))
+        return values
+
+    def act(self, env: VecProduct) -> IntArray:
+        """The greedy valid action of each episode."""
+        automaton = self.encoder.automaton_of(env.state)
+        return greedy(self.values(env.observation, automaton, env.mask), env.valid_actions())
+
+    def choices(self) -> IntArray:
+        """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
+        (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success`. The policy
+        is memoryless over (mask, product state) on an MDP, where the observation is the cell."""
+        t = self.tables
+        states = np.arange(t.num_states)
+        cells = np.maximum(t.world_state, 0)
+        automaton = self.encoder.automaton_of(states)
+        chosen = np.full((t.all_sets + 1, t.num_states), -1, dtype=np.int64)
+        for mask in range(t.all_sets + 1):
+            masks = np.full(t.num_states, mask)
+            best = greedy(self.values(cells, automaton, masks), t.valid)
+            chosen[mask] = t.choice[states, best]
+        chosen[:, t.world_state < 0] = -1
+        return chosen
+
+
+class DQNLearner(Learner):
+    """Epsilon-greedy DQN with replay and a target network (see the module docstring)."""
+
+    def __init__(
+        self,
+        tables: Tables,
+        config: TrainConfig,
+        rng: np.random.Generator,
+        phi: FloatArray | None = None,
+    ) -> None:
+        configure_torch()
+        self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
+        self.settings: DQNConfig = config.dqn
+        s = self.settings
+        self.num_envs = s.num_envs
+        self.encoder = Encoder(tables)
+        self.net: torch.nn.Sequential = build(
+            torch_seed(rng), lambda: mlp(self.encoder.size, s.hidden, s.layers, tables.num_actions)
+        )
+        if s.initial_value:
+            optimistic(self.net[-1], s.initial_value * s.reward_scale)
+        self.target = copy.deepcopy(self.net)
+        self.target.requires_grad_(False)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=s.lr)
+        self.replay = Ring(
+            s.replay_size,
+            {
+                "observation": ((), np.int64),
+                "automaton": ((), np.int64),
+                "mask": ((), np.int64),
+                "action": ((), np.int64),
+                "reward": ((), np.float32),
+                "gamma": ((), np.float32),
+                "terminated": ((), np.bool_),
+                "next_observation": ((), np.int64),
+                "next_automaton": ((), np.int64),
+                "next_mask": ((), np.int64),
+                "next_valid": ((tables.num_actions,), np.bool_),
+            },
+        )
+        self.vector_steps = self.gradient_steps = 0
+        self._epsilon = s.epsilon_start
+
+    @property
+    def epsilon(self) -> float:
+        """The exploration rate of the last step."""
+        return self._epsilon
+
+    def _act(self, env: VecProduct, automaton: IntArray) -> IntArray:
+        """Epsilon-greedy valid actions (the network runs only when some episode exploits)."""
+        valid = env.valid_actions()
+        explore = self.rng.random(env.num_envs) < self._epsilon
+        actions = random_valid(self.rng, valid)
+        if not explore.all():
+            with torch.no_grad():
+                values = self.net(self.encoder(env.observation, automaton, env.mask))
+            actions = np.where(explore, actions, greedy(values, valid))
+        return actions
+
+    def train_step(self, env: VecProduct, fraction: float) -> Step:
+        """One epsilon-greedy step of every episode; store it; learn every ``train_every``."""
+        s = self.settings
+        self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
+        state, observation, mask = env.state, env.observation, env.mask
+        automaton = self.encoder.automaton_of(state)
+        actions = self._act(env, automaton)
+        step = env.step(actions)
+        reward, gammas = learning_signal(step, state, self.config, self.phi)
+        self.replay.add(
+            {
+                "observation": observation,
+                "automaton": automaton,
+                "mask": mask,
+                "action": actions,
+                "reward": reward * s.reward_scale,
+                "gamma": gammas,
+                "terminated": step.terminated,
+                "next_observation": step.next_observation,
+                "next_automaton": self.encoder.automaton_of(step.next_state),
+                "next_mask": step.next_mask,
+                "next_valid": self.tables.valid[step.next_state],
+            }
+        )
+        self.vector_steps += 1
+        if self.replay.size >= s.warmup_steps and self.vector_steps % s.train_every == 0:
+            self._learn()
+        return step
+
+    def _learn(self) -> None:
+        """One gradient step on a replayed minibatch; copy to the target when it is due."""
+        s = self.settings
+        batch = self.replay.sample(self.rng, s.batch_size)
+        inputs = self.encoder(batch["observation"], batch["automaton"], batch["mask"])
+        after = self.encoder(batch["next_observation"], batch["next_automaton"], batch["next_mask"])
+        action, reward, gamma, terminated, next_valid = tensors(
+            batch, "action", "reward", "gamma", "terminated", "next_valid"
+        )
+        with torch.no_grad():
+            online_next = self.net(after) if s.double else None
+            target_next = self.target(after)
+            value = bootstrap(
+                online_next if online_next is not None else target_next,
+                target_next,
+                next_valid,
+                terminated,
+                s.double,
+            )
+            goal = reward + gamma * value
+        taken = self.net(inputs).gather(1, action[:, None]).squeeze(1)
+        loss = huber(taken - goal, torch.ones_like(goal))
+        gradient_step(loss, self.optimizer, list(self.net.parameters()), s.grad_clip)
+        self.gradient_steps += 1
+        if self.gradient_steps % s.target_update == 0:
+            self.target.load_state_dict(self.net.state_dict())
+
+    def state_dict(self) -> dict[str, Any]:
+        """Networks, optimiser, replay memory, counters and the random state."""
+        return {
+            "net": copy.deepcopy(self.net.state_dict()),
+            "target": copy.deepcopy(self.target.state_dict()),
+            "optimizer": copy.deepcopy(self.optimizer.state_dict()),
+            "replay": self.replay.state_dict(),
+            "vector_steps": self.vector_steps,
+            "gradient_steps": self.gradient_steps,
+            "epsilon": self._epsilon,
+            "rng": copy.deepcopy(self.rng.bit_generator.state),
+            "torch_rng": torch.get_rng_state(),
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        self.net.load_state_dict(saved["net"])
+        self.target.load_state_dict(saved["target"])
+        self.optimizer.load_state_dict(copy.deepcopy(saved["optimizer"]))
+        self.replay.load_state_dict(saved["replay"])
+        self.vector_steps = int(saved["vector_steps"])
+        self.gradient_steps = int(saved["gradient_steps"])
+        self._epsilon = float(saved["epsilon"])
+        self.rng.bit_generator.state = saved["rng"]
+        torch.set_rng_state(saved["torch_rng"])
+
+    def policy(self) -> DQNPolicy:
+        """Greedy in a frozen copy of the current network."""
+        net = copy.deepcopy(self.net)
+        net.requires_grad_(False)
+        return DQNPolicy(self.tables, self.encoder, net)

@@ -1,0 +1,199 @@
+"""Torch pieces the deep learners share: what the agent sees as a feature vector, the networks,
+seeding, a numpy replay ring and the (Double) DQN target.
+
+The agent sees the world's observation (the cell of an MDP), the automaton state and the
+frontier mask; :class:`Encoder` turns them (and optionally the previous action) into one-hot
+blocks concatenated. The learners keep every random draw after construction in their numpy
+generator (saved in their checkpoints), so torch's own generator only initialises the weights,
+from a seed drawn from that generator, without touching torch's global random state.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from mitlc.learn.vec import Tables
+from mitlc.worlds.model import BoolArray, IntArray
+
+THREADS = 1
+"""Torch threads for the deep learners: the networks are small, and one thread is several
+times faster than two on a 2-core machine (threads contend with the numpy simulator)."""
+
+
+def configure_torch() -> None:
+    """Fix torch's threads (process-wide) so that runs are fast and repeatable."""
+    if torch.get_num_threads() != THREADS:
+        torch.set_num_threads(THREADS)
+
+
+def torch_seed(rng: np.random.Generator) -> int:
+    """A seed for torch drawn from ``rng``."""
+    return int(rng.integers(0, 2**62))
+
+
+def build(seed: int, factory: Any) -> Any:
+    """``factory()`` with torch's random state seeded by ``seed`` and restored afterwards."""
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        return factory()
+
+
+class Encoder:
+    """One-hot observation, one-hot automaton state (absorbing states: 0), the frontier mask's
+    bits and, with ``previous_action``, a one-hot of the previous action (an extra slot for
+    "none", the first step of an episode)."""
+
+    def __init__(self, tables: Tables, previous_action: bool = False) -> None:
+        self.automaton = np.maximum(tables.automaton_state, 0)
+        self.num_sets = tables.num_sets
+        self.previous_action = previous_action
+        self.obs_offset = 0
+        self.aut_offset = tables.num_observations
+        self.mask_offset = self.aut_offset + tables.num_automaton_states
+        self.action_offset = self.mask_offset + tables.num_sets
+        self.size = self.action_offset + (tables.num_actions + 1 if previous_action else 0)
+
+    def automaton_of(self, states: IntArray) -> IntArray:
+        """The automaton state of product states ``states`` (what the agent may know of them)."""
+        automaton: IntArray = self.automaton[states]
+        return automaton
+
+    def __call__(
+        self,
+        observation: IntArray,
+        automaton: IntArray,
+        mask: IntArray,
+        previous: IntArray | None = None,
+    ) -> torch.Tensor:
+        """The features of each entry (any shape ``S``): a float tensor of shape ``S + (size,)``;
+        ``previous`` is the previous action, -1 for none."""
+        shape = np.shape(observation)
+        rows = np.arange(int(np.prod(shape)))
+        x = np.zeros((len(rows), self.size), dtype=np.float32)
+        x[rows, self.obs_offset + np.ravel(observation)] = 1.0
+        x[rows, self.aut_offset + np.ravel(automaton)] = 1.0
+        if self.num_sets:
+            bits = (np.ravel(mask)[:, None] >> np.arange(self.num_sets)) & 1
+            x[:, self.mask_offset : self.action_offset] = bits
+        if self.previous_action:
+            assert previous is not None, "this encoder needs the previous action"
+            x[rows, self.action_offset + 1 + np.ravel(previous)] = 1.0
+        return torch.from_numpy(x.reshape(*shape, self.size))
+
+
+def mlp(inputs: int, hidden: int, layers: int, outputs: int) -> nn.Sequential:
+    """``layers`` hidden ReLU layers of width ``hidden``, then a linear output layer."""
+    modules: list[nn.Module] = []
+    width = inputs
+    for _ in range(layers):
+        modules += [nn.Linear(width, hidden), nn.ReLU()]
+        width = hidden
+    modules.append(nn.Linear(width, outputs))
+    return nn.Sequential(*modules)
+
+
+def optimistic(layer: nn.Module, value: float) -> None:
+    """Start an output ``layer`` (``nn.Linear``) at ``value`` for every input: bias ``value``,
+    weights a hundredth of their initial size."""
+    assert isinstance(layer, nn.Linear)
+    with torch.no_grad():
+        layer.weight.mul_(0.01)
+        layer.bias.fill_(value)
+
+
+NEGATIVE = -1e9
+"""The value of an invalid action in a maximum (finite, so that 0 times it stays 0)."""
+
+
+def masked(values: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """``values`` with invalid actions at :data:`NEGATIVE`."""
+    return values.masked_fill(~valid, NEGATIVE)
+
+
+def greedy(values: torch.Tensor, valid: BoolArray) -> IntArray:
+    """The best valid action of each row of ``values``."""
+    best: IntArray = masked(values, torch.from_numpy(valid)).argmax(dim=-1).numpy()
+    return best.astype(np.int64)
+
+
+def bootstrap(
+    online_next: torch.Tensor,
+    target_next: torch.Tensor,
+    next_valid: torch.Tensor,
+    terminated: torch.Tensor,
+    double: bool,
+) -> torch.Tensor:
+    """The value of the next state: ``max_a Q_target(next, a)`` over valid actions (Mnih et al.,
+    Nature 2015), or with ``double`` ``Q_target(next, argmax_a Q_online(next, a))`` (van Hasselt,
+    Guez and Silver, AAAI 2016); 0 after a terminal step."""
+    if double:
+        best = masked(online_next, next_valid).argmax(dim=-1, keepdim=True)
+        value = target_next.gather(-1, best).squeeze(-1)
+    else:
+        value = masked(target_next, next_valid).max(dim=-1).values
+    return torch.where(terminated, torch.zeros_like(value), value)
+
+
+def huber(error: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """The Huber loss of ``error`` (delta 1), averaged with ``weight`` (0 drops an entry)."""
+    loss = torch.nn.functional.huber_loss(error, torch.zeros_like(error), reduction="none")
+    return (loss * weight).sum() / weight.sum().clamp(min=1.0)
+
+
+def gradient_step(
+    loss: torch.Tensor, optimizer: torch.optim.Optimizer, params: list[nn.Parameter], clip: float
+) -> None:
+    """One optimiser step on ``loss`` with the gradient norm clipped to ``clip``."""
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()  # type: ignore[no-untyped-call]
+    nn.utils.clip_grad_norm_(params, clip)
+    optimizer.step()
+
+
+class Ring:
+    """A replay memory: fixed-capacity numpy arrays written in a ring, sampled uniformly."""
+
+    def __init__(self, capacity: int, fields: dict[str, tuple[tuple[int, ...], Any]]) -> None:
+        """``fields`` maps a name to the shape of one entry and its dtype."""
+        self.capacity, self.position, self.size = capacity, 0, 0
+        self.data = {
+            name: np.zeros((capacity, *shape), dtype=dtype)
+            for name, (shape, dtype) in fields.items()
+        }
+
+    def add(self, entries: dict[str, np.ndarray[Any, Any]]) -> None:
+        """Append a batch of entries (the oldest are overwritten when full)."""
+        count = len(next(iter(entries.values())))
+        where = (self.position + np.arange(count)) % self.capacity
+        for name, values in entries.items():
+            self.data[name][where] = values
+        self.position = int((self.position + count) % self.capacity)
+        self.size = min(self.capacity, self.size + count)
+
+    def sample(self, rng: np.random.Generator, count: int) -> dict[str, np.ndarray[Any, Any]]:
+        """``count`` entries drawn uniformly with replacement."""
+        index = rng.integers(0, self.size, size=count)
+        return {name: values[index] for name, values in self.data.items()}
+
+    def state_dict(self) -> dict[str, Any]:
+        """The stored entries and the write position."""
+        return {
+            "position": self.position,
+            "size": self.size,
+            "data": {name: values[: self.size].copy() for name, values in self.data.items()},
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        self.position, self.size = int(saved["position"]), int(saved["size"])
+        for name, values in saved["data"].items():
+            self.data[name][: self.size] = values
+
+
+def tensors(batch: dict[str, np.ndarray[Any, Any]], *names: str) -> list[torch.Tensor]:
+    """The named arrays of ``batch`` as tensors."""
+    return [torch.from_numpy(np.ascontiguousarray(batch[name])) for name in names]
