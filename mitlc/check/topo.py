@@ -137,6 +137,10 @@ def _solve_layers(
     away = csr_matrix((np.where(loops, 0.0, t.probs), t.targets, t.indptr), shape=matrix.shape)
     del loops
     away = away[choices]
+    # Each layer's rows by hand (every row has an entry): scipy's slicing costs more than the
+    # product itself in the many small layers.
+    row_ptr, columns, probs = away.indptr.astype(np.int64), away.indices, away.data
+    del away
     leaving = stays[choices] < 1.0 - 1e-15
     denominator = np.where(leaving, 1.0 - stays[choices], 1.0)
     counts = per_state[order]
@@ -148,7 +152,8 @@ def _solve_layers(
         lo, hi = int(ptr[depth]), int(ptr[depth + 1])
         states = order[lo:hi]
         a, b = int(state_start[lo]), int(state_start[hi])
-        q_values = away[a:b] @ values
+        s, e = int(row_ptr[a]), int(row_ptr[b])
+        q_values = np.add.reduceat(probs[s:e] * values[columns[s:e]], row_ptr[a:b] - s)
         q_values = np.where(leaving[a:b], q_values / denominator[a:b], -1.0)
         best = np.maximum.reduceat(q_values, state_start[lo:hi] - a)
         if single[states].all():
