@@ -159,7 +159,6 @@ def test_policy_never_picks_an_invalid_action(world: Path, algo: str) -> None:
     tables = without_action(setting.tables, 2)
     env = VecProduct(tables, 6, np.random.default_rng(0))
     policy = learner.policy()
-    policy.tables = tables  # type: ignore[attr-defined]
     policy.reset(6)
     for _ in range(40):
         actions = policy.act(env)

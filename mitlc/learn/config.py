@@ -88,6 +88,8 @@ class DQNConfig:
     initial_value: float = 0.0
     """The value every action starts at, in reward units (the output layer's bias; its weights
     start small): optimism drives exploration toward rarely tried actions."""
+    lr_end_ratio: float = 1.0
+    """The learning rate at the end of the run as a share of ``lr`` (it falls linearly)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,6 +120,8 @@ class DRQNConfig:
     initial_value: float = 0.0
     """The value every action starts at, in reward units (the output layer's bias; its weights
     start small): optimism drives exploration toward rarely tried actions."""
+    lr_end_ratio: float = 1.0
+    """The learning rate at the end of the run as a share of ``lr`` (it falls linearly)."""
     previous_action: bool = True
     """Feed the previous action (one-hot) to the recurrent cell with the observation."""
 

@@ -27,6 +27,7 @@ from mitlc.learn.config import DQNConfig, TrainConfig
 from mitlc.learn.nets import (
     Encoder,
     Ring,
+    anneal,
     bootstrap,
     build,
     configure_torch,
@@ -139,6 +140,7 @@ class DQNLearner(Learner):
         """One epsilon-greedy step of every episode; store it; learn every ``train_every``."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
+        anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
         state, observation, mask = env.state, env.observation, env.mask
         automaton = self.encoder.automaton_of(state)
         actions = self._act(env, automaton)

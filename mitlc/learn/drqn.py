@@ -30,6 +30,7 @@ from mitlc.learn.config import DRQNConfig, TrainConfig
 from mitlc.learn.nets import (
     Encoder,
     Ring,
+    anneal,
     bootstrap,
     build,
     configure_torch,
@@ -214,6 +215,7 @@ class DRQNLearner(Learner):
         ``train_every`` steps once enough sequences are stored."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
+        anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
         before = env.state
         automaton = self.encoder.automaton_of(before)
         seen = {"observation": env.observation, "automaton": automaton, "mask": env.mask}

@@ -154,6 +154,13 @@ def gradient_step(
     optimizer.step()
 
 
+def anneal(optimizer: torch.optim.Optimizer, lr: float, end_ratio: float, fraction: float) -> None:
+    """Set the learning rate to ``lr`` falling linearly to ``lr * end_ratio`` over the run."""
+    rate = lr * (1.0 + (end_ratio - 1.0) * min(1.0, max(0.0, fraction)))
+    for group in optimizer.param_groups:
+        group["lr"] = rate
+
+
 class Ring:
     """A replay memory: fixed-capacity numpy arrays written in a ring, sampled uniformly."""
 
