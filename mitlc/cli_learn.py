@@ -78,10 +78,12 @@ def _progress_display(quiet: bool) -> Any:
 
     return Progress(
         TextColumn("[bold]{task.description}"),
-        BarColumn(bar_width=24),
+        BarColumn(bar_width=12),
         MofNCompleteColumn(),
-        TextColumn("success {task.fields[success]:.3f}  return {task.fields[ret]:.1f}"),
-        TextColumn("ε {task.fields[epsilon]:.3f}"),
+        TextColumn(
+            "success {task.fields[success]:.3f} return {task.fields[ret]:.1f} "
+            "ε {task.fields[epsilon]:.2f}"
+        ),
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=Console(stderr=True),
@@ -139,7 +141,7 @@ def train_command(
         formula = to_text(load_formula(spec, None))
     with _StopFlag() as stop, _progress_display(quiet) as display:
         task = display.add_task(
-            f"{config.algo} {name}", total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
+            config.algo, total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
         )
 
         def show(p: Any) -> None:
