@@ -51,6 +51,15 @@ def test_world_settings_then_overrides() -> None:
     assert c.q.alpha == 0.25 and c.seed == 4 and c.q.epsilon_end == 0.1
 
 
+def test_a_learner_section_budget_wins_when_that_learner_runs() -> None:
+    training = {"algo": "q", "episodes": 300_000, "dqn": {"episodes": 4_000, "lr": 0.01}}
+    assert resolve(training, {}, discount=0.99, pomdp=False).episodes == 300_000
+    dqn = resolve(training, {"algo": "dqn"}, discount=0.99, pomdp=False)
+    assert dqn.episodes == 4_000 and dqn.dqn.lr == 0.01 and dqn.log_every == 40
+    given = resolve(training, {"algo": "dqn", "episodes": "700"}, discount=0.99, pomdp=False)
+    assert given.episodes == 700
+
+
 @pytest.mark.parametrize(
     ("training", "overrides", "message"),
     [
@@ -61,6 +70,8 @@ def test_world_settings_then_overrides() -> None:
         ({"discount": {"gamma": 1.5}}, {}, r"training\.discount\.gamma: expected a value in"),
         ({"episodes": 0}, {}, r"training\.episodes: expected a positive value, got 0"),
         ({"q": 3}, {}, r"training\.q: expected a mapping, got 3"),
+        ({"dqn": {"episodes": -2}}, {}, r"training\.dqn\.episodes: expected a positive value"),
+        ({"q": {"episodes": "x"}}, {}, r"training\.q\.episodes: expected a number, got 'x'"),
         ({}, {"dqn.double": "maybe"}, r"training\.dqn\.double: expected true or false"),
     ],
 )

@@ -7,6 +7,11 @@ A world file may say::
       algo: q            # q | dqn | drqn (default: q for an MDP, drqn for a POMDP)
       episodes: 20000
       q: {alpha: 0.2}    # the learner's own section: QConfig, DQNConfig or DRQNConfig
+      dqn: {episodes: 40000, initial_value: 100}
+
+A section's ``episodes`` is that learner's budget: it wins over the top-level ``episodes`` when
+the learner runs (so ``--algo dqn`` on a file tuned for ``q`` does not inherit its budget), and
+an ``episodes`` override (``--episodes``) wins over both.
 
 Every learner's config is a frozen dataclass whose fields have defaults; :func:`resolve`
 checks names and types and fills the rest in.
@@ -272,10 +277,14 @@ def resolve(
     e.g. ``{"q.alpha": "0.2"}``). Raises :class:`ConfigError` naming the path
     (``training.q.alpha``)."""
     base: dict[str, Any] = {"algo": "drqn" if pomdp else "q", "discount": {"gamma": discount}}
-    values = _merge(_merge(base, training), _nest(overrides))
+    extra = _nest(overrides)
+    values = _merge(_merge(base, training), extra)
     if not isinstance(values.get("discount"), Mapping):
         raise ConfigError(f"training.discount: expected a mapping, got {values['discount']!r}")
+    budgets = _section_episodes(values)
     algo = values.get("algo")
+    if algo in budgets and "episodes" not in extra:
+        values["episodes"] = budgets[algo]
     if algo in DEFAULT_EPISODES and "episodes" not in values:
         values["episodes"] = DEFAULT_EPISODES[algo]
     episodes = _coerce(values["episodes"], int, "training.episodes") if "episodes" in values else 0
@@ -286,6 +295,22 @@ def resolve(
         return _build(TrainConfig, values, "")
     except ConfigError as err:
         raise ConfigError(f"training.{err}") from None
+
+
+def _section_episodes(values: dict[str, Any]) -> dict[str, int]:
+    """Each learner section's own ``episodes``, removed from ``values`` and checked."""
+    budgets = {}
+    for name in ALGORITHMS:
+        section = values.get(name)
+        if isinstance(section, Mapping) and "episodes" in section:
+            section = dict(section)
+            where = f"training.{name}.episodes"
+            budget = _coerce(section.pop("episodes"), int, where)
+            if budget <= 0:
+                raise ConfigError(f"{where}: expected a positive value, got {budget!r}")
+            budgets[name] = budget
+            values[name] = section
+    return budgets
 
 
 def to_data(config: TrainConfig) -> dict[str, Any]:
