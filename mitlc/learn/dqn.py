@@ -31,9 +31,11 @@ from mitlc.learn.nets import (
     bootstrap,
     build,
     configure_torch,
+    deep_state,
     gradient_step,
     greedy,
     huber,
+    load_deep_state,
     mlp,
     optimistic,
     tensors,
@@ -195,29 +197,11 @@ class DQNLearner(Learner):
 
     def state_dict(self) -> dict[str, Any]:
         """Networks, optimiser, replay memory, counters and the random state."""
-        return {
-            "net": copy.deepcopy(self.net.state_dict()),
-            "target": copy.deepcopy(self.target.state_dict()),
-            "optimizer": copy.deepcopy(self.optimizer.state_dict()),
-            "replay": self.replay.state_dict(),
-            "vector_steps": self.vector_steps,
-            "gradient_steps": self.gradient_steps,
-            "epsilon": self._epsilon,
-            "rng": copy.deepcopy(self.rng.bit_generator.state),
-            "torch_rng": torch.get_rng_state(),
-        }
+        return deep_state(self)
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
-        self.net.load_state_dict(saved["net"])
-        self.target.load_state_dict(saved["target"])
-        self.optimizer.load_state_dict(copy.deepcopy(saved["optimizer"]))
-        self.replay.load_state_dict(saved["replay"])
-        self.vector_steps = int(saved["vector_steps"])
-        self.gradient_steps = int(saved["gradient_steps"])
-        self._epsilon = float(saved["epsilon"])
-        self.rng.bit_generator.state = saved["rng"]
-        torch.set_rng_state(saved["torch_rng"])
+        load_deep_state(self, saved)
 
     def policy(self) -> DQNPolicy:
         """Greedy in a frozen copy of the current network."""

@@ -34,9 +34,11 @@ from mitlc.learn.nets import (
     bootstrap,
     build,
     configure_torch,
+    deep_state,
     gradient_step,
     greedy,
     huber,
+    load_deep_state,
     optimistic,
     tensors,
     torch_seed,
@@ -294,39 +296,22 @@ class DRQNLearner(Learner):
             self.target.load_state_dict(self.net.state_dict())
 
     def state_dict(self) -> dict[str, Any]:
-        """Networks, optimiser, replay, the episodes' streams and states, counters, random
-        states."""
+        """Networks, optimiser, replay memory, open streams, counters and the random state."""
         return {
-            "net": copy.deepcopy(self.net.state_dict()),
-            "target": copy.deepcopy(self.target.state_dict()),
-            "optimizer": copy.deepcopy(self.optimizer.state_dict()),
-            "replay": self.replay.state_dict(),
+            **deep_state(self),
             "streams": {k: v.copy() for k, v in self.streams.data.items()},
             "length": self.streams.length.copy(),
             "state": self.state.clone(),
             "previous": self.previous.copy(),
-            "vector_steps": self.vector_steps,
-            "gradient_steps": self.gradient_steps,
-            "epsilon": self._epsilon,
-            "rng": copy.deepcopy(self.rng.bit_generator.state),
-            "torch_rng": torch.get_rng_state(),
         }
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
-        self.net.load_state_dict(saved["net"])
-        self.target.load_state_dict(saved["target"])
-        self.optimizer.load_state_dict(copy.deepcopy(saved["optimizer"]))
-        self.replay.load_state_dict(saved["replay"])
+        load_deep_state(self, saved)
         self.streams.data = {k: np.array(v) for k, v in saved["streams"].items()}
         self.streams.length = np.array(saved["length"])
         self.state = saved["state"].clone()
         self.previous = np.array(saved["previous"])
-        self.vector_steps = int(saved["vector_steps"])
-        self.gradient_steps = int(saved["gradient_steps"])
-        self._epsilon = float(saved["epsilon"])
-        self.rng.bit_generator.state = saved["rng"]
-        torch.set_rng_state(saved["torch_rng"])
 
     def policy(self) -> DRQNPolicy:
         """Greedy in a frozen copy of the current network."""

@@ -10,7 +10,8 @@ from a seed drawn from that generator, without touching torch's global random st
 
 from __future__ import annotations
 
-from typing import Any
+import copy
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -204,3 +205,50 @@ class Ring:
 def tensors(batch: dict[str, np.ndarray[Any, Any]], *names: str) -> list[torch.Tensor]:
     """The named arrays of ``batch`` as tensors."""
     return [torch.from_numpy(np.ascontiguousarray(batch[name])) for name in names]
+
+
+class DeepLearner(Protocol):
+    """What :func:`deep_state` saves of a deep learner (the objects are restored in place)."""
+
+    vector_steps: int
+    gradient_steps: int
+    _epsilon: float
+
+    @property
+    def net(self) -> nn.Module: ...
+    @property
+    def target(self) -> nn.Module: ...
+    @property
+    def optimizer(self) -> torch.optim.Optimizer: ...
+    @property
+    def replay(self) -> Ring: ...
+    @property
+    def rng(self) -> np.random.Generator: ...
+
+
+def deep_state(learner: DeepLearner) -> dict[str, Any]:
+    """A deep learner's networks, optimiser, replay memory, counters and random states."""
+    return {
+        "net": copy.deepcopy(learner.net.state_dict()),
+        "target": copy.deepcopy(learner.target.state_dict()),
+        "optimizer": copy.deepcopy(learner.optimizer.state_dict()),
+        "replay": learner.replay.state_dict(),
+        "vector_steps": learner.vector_steps,
+        "gradient_steps": learner.gradient_steps,
+        "epsilon": learner._epsilon,
+        "rng": copy.deepcopy(learner.rng.bit_generator.state),
+        "torch_rng": torch.get_rng_state(),
+    }
+
+
+def load_deep_state(learner: DeepLearner, saved: dict[str, Any]) -> None:
+    """Restore :func:`deep_state` into ``learner``."""
+    learner.net.load_state_dict(saved["net"])
+    learner.target.load_state_dict(saved["target"])
+    learner.optimizer.load_state_dict(copy.deepcopy(saved["optimizer"]))
+    learner.replay.load_state_dict(saved["replay"])
+    learner.vector_steps = int(saved["vector_steps"])
+    learner.gradient_steps = int(saved["gradient_steps"])
+    learner._epsilon = float(saved["epsilon"])
+    learner.rng.bit_generator.state = saved["rng"]
+    torch.set_rng_state(saved["torch_rng"])
