@@ -24,6 +24,7 @@ from mitlc.automata.hoa import to_hoa, to_hoa_stream
 from mitlc.automata.runs import run_states
 from mitlc.cli_learn import register as register_learning
 from mitlc.errors import MitlcError, SourceLocation, SpecError
+from mitlc.product.explicit import Product
 from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
 from mitlc.syntax.tree import tree_text
 from mitlc.traces import TraceError, read_trace, trace_columns
@@ -297,7 +298,9 @@ def check_command(
     digital = compile_formula(formula, max_states=max_states).digital
     if world.is_pomdp:
         typer.echo(
-            "note: a POMDP world; the values below are the fully observable upper bounds",
+            "note: a POMDP world; pmax and pmax_horizon are the fully observable upper bounds, "
+            "pmax_horizon_observed the exact success of an observation-based policy (a lower "
+            "bound)",
             err=True,
         )
     report = check(world, digital)
@@ -315,6 +318,8 @@ def check_command(
         text = _json_dumps(report.policy_data(world)) + "\n"
         write_atomically(policy, text.encode("utf-8"))
     summary = report.summary()
+    if world.is_pomdp:
+        summary["pmax_horizon_observed"] = _observed(world, report.product)
     if world.is_pomdp and pomdp_bounds:
         summary["bounds"] = _pomdp_bounds(world, digital)
     if as_json:
@@ -326,6 +331,16 @@ def check_command(
         if isinstance(value, dict) and "lower" in value:
             shown = f"[{value['lower']:.6f}, {value['upper']:.6f}] ({value['method']})"
         typer.echo(f"{key:<{width}}  {shown}")
+
+
+def _observed(world: World, product: Product) -> float | str:
+    """The exact success of the best observation-based policy found, or why there is none."""
+    from mitlc.check.observed import ObservedBoundError, observed_bound
+
+    try:
+        return observed_bound(world, product).value
+    except ObservedBoundError as err:
+        return f"unavailable: {err}"
 
 
 def _pomdp_bounds(world: World, digital: DigitalAutomaton) -> dict[str, object]:

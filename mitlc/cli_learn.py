@@ -216,9 +216,13 @@ def _print_evaluation(
         rows.append(("learned, exact", f"{report.exact:.6f}"))
     kind = "fully observable upper bound" if report.pomdp else "optimum"
     rows.append((kind, f"{report.optimum:.6f}"))
+    if report.lower is not None:
+        rows.append(("observation-based lower bound", f"{report.lower:.6f}"))
     if report.optimum > 0:
         shown = report.exact if report.exact is not None else report.success_rate
         rows.append(("ratio", f"{shown / report.optimum:.4f}"))
+    if report.lower is not None and report.lower > 0:
+        rows.append(("ratio to the lower bound", f"{report.success_rate / report.lower:.4f}"))
     if report.bounds is not None:
         rows.append(
             ("Storm bounds", f"[{report.bounds['lower']:.6f}, {report.bounds['upper']:.6f}]")

@@ -4,7 +4,9 @@ The greedy policy runs ``episodes`` seeded episodes, one per slot of a :class:`V
 (each slot's first episode only, so short failures are not over-counted); its success rate
 comes with a 95% Wilson score interval (Wilson, JASA 1927). Beside it stand the optimum of the
 same event, :func:`mitlc.check.solve.pmax_horizon` on the product (for a POMDP the fully
-observable value, an upper bound; Storm's belief bounds on request), and, when the policy is
+observable value, an upper bound, and below it the exact success of an observation-based
+policy, :func:`mitlc.check.observed.observed_bound`; Storm's belief bounds on request), and,
+when the policy is
 memoryless on an MDP's product (tabular Q, DQN), its exact success probability
 (:func:`mitlc.learn.exact.policy_success`).
 """
@@ -66,6 +68,9 @@ class Evaluation:
     pomdp: bool
     bounds: dict[str, Any] | None
     seconds: float
+    lower: float | None = None
+    """For a POMDP: the exact success of the best observation-based policy found, a lower
+    bound of the optimum (``None`` for an MDP, or where the search does not apply)."""
 
     @property
     def success_rate(self) -> float:
@@ -98,6 +103,9 @@ class Evaluation:
             data["exact_ratio"] = self.exact / self.optimum
         if self.bounds is not None:
             data["bounds"] = self.bounds
+        if self.lower is not None:
+            data["lower_bound"] = self.lower
+            data["lower_ratio"] = self.success_rate / self.lower if self.lower > 0 else None
         return data
 
 
@@ -138,7 +146,14 @@ def evaluate(
     exact = None
     if not setting.world.is_pomdp and isinstance(policy, Memoryless):
         exact = policy_success(setting.product, policy.choices(), horizon)
-    bounds = None
+    bounds, lower = None, None
+    if setting.world.is_pomdp:
+        from mitlc.check.observed import ObservedBoundError, observed_bound
+
+        try:
+            lower = observed_bound(setting.world, setting.product, horizon=horizon).value
+        except ObservedBoundError:
+            lower = None
     if setting.world.is_pomdp and pomdp_bounds:
         from mitlc.check.pomdp import pomdp_bounds as storm_bounds
 
@@ -154,4 +169,5 @@ def evaluate(
         pomdp=setting.world.is_pomdp,
         bounds=bounds,
         seconds=time.perf_counter() - start,
+        lower=lower,
     )
