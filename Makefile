@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test verify bench lint golden clean
+.PHONY: graphviz demo test verify bench bench-check bench-learn bench-throughput lint golden clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,17 +18,21 @@ $(STAMP): pyproject.toml
 # (!a U[5,10] a) & (!b U[15,20] b)). Check it exactly, learn it with tabular Q-learning (a few
 # seconds), print the learned policy's success beside the optimum, and draw the run
 # (learning curve, trajectories on the grid, the timed automaton) under build/case1-q/.
-demo: $(STAMP)
+demo: graphviz $(STAMP)
 	$(BIN)/mitlc check specs/paper/case1.yaml
 	rm -rf build/case1-q
 	$(BIN)/mitlc train specs/paper/case1.yaml --out build/case1-q
 	$(BIN)/mitlc plot build/case1-q
 
+# PNGs of automata, products and runs are drawn by Graphviz's `dot` (a system package).
+graphviz:
+	@command -v dot >/dev/null 2>&1 || { echo "Graphviz's 'dot' is missing: install it first (apt-get install graphviz, or brew install graphviz); .ci/run does this"; exit 1; }
+
 lint: $(STAMP)
 	$(BIN)/ruff check mitlc tests bench
 	$(BIN)/mypy
 
-test: lint
+test: graphviz lint
 	$(BIN)/pytest -q
 
 # Longer seeded checks (the slow marker, excluded from `make test`): 240,000 (formula, lasso)
@@ -39,6 +43,18 @@ verify: $(STAMP)
 # Compile time and sizes beside Spot's translation (several minutes: Spot is given 60 s a formula).
 bench: $(STAMP)
 	$(BIN)/python bench/compile_bench.py
+
+# Product build and exact solve of growing grids beside Storm on the exported model (a minute).
+bench-check: $(STAMP)
+	$(BIN)/python bench/check_bench.py --sizes 10,20,40,60,80,100
+
+# The paper's three case studies trained and measured beside the optimum (about 10 minutes).
+bench-learn: $(STAMP)
+	$(BIN)/python bench/learn_bench.py
+
+# Tabular steps per second: the vectorised simulator beside a gymnasium step loop (15 s).
+bench-throughput: $(STAMP)
+	$(BIN)/python bench/learn_throughput.py
 
 # Rewrite golden files from the current output; read `git diff tests/golden` before committing.
 golden: $(STAMP)

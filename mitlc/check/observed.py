@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from mitlc.check.topo import spans
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import FloatArray, IntArray, World
 
@@ -153,8 +154,7 @@ def _move_matrix(product: Product, live: IntArray, choices: IntArray, masks: int
     """Rows ``mask * n + x`` for every live ``x``: the successors ``(mask | marks, y)``."""
     n, t = product.num_states, product.transitions
     sizes = t.indptr[choices + 1] - t.indptr[choices]
-    starts = np.repeat(t.indptr[choices] - np.cumsum(sizes) + sizes, sizes)
-    entries = starts + np.arange(int(sizes.sum()))
+    entries = spans(t.indptr, choices)
     rows, columns, probs = [], [], []
     for mask in range(masks):
         rows.append(np.repeat(mask * n + live, sizes))
@@ -175,8 +175,7 @@ def _pairs(
     obs, n = world.observations.model, product.num_states
     cells = product.world_state[live]
     sizes = obs.indptr[cells + 1] - obs.indptr[cells]
-    starts = np.repeat(obs.indptr[cells] - np.cumsum(sizes) + sizes, sizes)
-    entries = starts + np.arange(int(sizes.sum()))
+    entries = spans(obs.indptr, cells)
     x = np.repeat(live, sizes)
     key = obs.targets[entries] * num_q + product.automaton_state[x]
     return (
