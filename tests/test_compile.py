@@ -146,3 +146,18 @@ def test_monitor_verdicts(tmp_path: Path) -> None:
     broken.write_text("a,b\n0,2\n", encoding="utf-8")
     result = runner.invoke(app, ["monitor", case1, str(broken)])
     assert result.exit_code == 1 and f"{broken}:2:" in result.output
+
+
+def test_atomic_writes_replace_whole_files_with_the_usual_permissions(tmp_path: Path) -> None:
+    from mitlc.automata.dot import write_atomically
+
+    target = tmp_path / "deep" / "out.json"
+    old = os.umask(0o027)
+    try:
+        write_atomically(target, b"first")
+        write_atomically(target, b"second")
+    finally:
+        os.umask(old)
+    assert target.read_bytes() == b"second"
+    assert target.stat().st_mode & 0o777 == 0o640
+    assert [p.name for p in target.parent.iterdir()] == ["out.json"]  # no temporary left
