@@ -48,7 +48,7 @@ bench: $(STAMP)
 bench-check: $(STAMP)
 	$(BIN)/python bench/check_bench.py --sizes 10,20,40,60,80,100
 
-# The paper's three case studies trained and measured beside the optimum (about 10 minutes).
+# The paper's three case studies trained and measured beside the optimum (about 13 minutes).
 bench-learn: $(STAMP)
 	$(BIN)/python bench/learn_bench.py
 

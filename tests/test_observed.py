@@ -4,6 +4,7 @@ policy it returns in the product environment, monotone sweeps, and its errors.""
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -13,7 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from mitlc.automata import translate
-from mitlc.check.observed import ObservedBoundError, observed_bound
+from mitlc.check.observed import ObservedBound, ObservedBoundError, observed_bound
 from mitlc.check.solve import pmax_horizon
 from mitlc.cli import app
 from mitlc.product import ProductEnv, build_product
@@ -21,7 +22,7 @@ from mitlc.syntax import parse
 from mitlc.worlds import load_world
 from mitlc.worlds.model import Observations, Sparse, World
 from tests.conftest import ROOT
-from tests.test_pomdp import guessing_world
+from tests.pomdp_worlds import guessing_world
 
 PAPER = ROOT / "specs" / "paper"
 
@@ -39,7 +40,7 @@ horizon: 12
 """
 
 
-def bound_of(world: World) -> tuple[float, float, object]:
+def bound_of(world: World) -> tuple[float, float, ObservedBound]:
     """The observation-based bound, the fully observable ``pmax_horizon`` and the bound."""
     product = build_product(world, translate(parse(world.spec, world.spec_source)))
     found = observed_bound(world, product)
@@ -70,8 +71,7 @@ def test_observing_the_cell_gives_the_fully_observable_optimum(name: str) -> Non
 
 def test_bound_lies_below_the_fully_observable_optimum_and_sweeps_climb(tmp_path: Path) -> None:
     value, full, found = bound_of(noisy_world(tmp_path))
-    sweeps = found.sweeps  # type: ignore[attr-defined]
-    assert all(b >= a - 1e-15 for a, b in zip(sweeps, sweeps[1:], strict=False))
+    assert all(b >= a - 1e-15 for a, b in itertools.pairwise(found.sweeps))
     assert 0.0 < value <= full + 1e-12
     assert value < full - 1e-3  # the noise costs something in this world
 
