@@ -19,6 +19,7 @@ from mitlc.learn.base import Learner, Policy  # noqa: E402
 from mitlc.learn.config import DQNConfig, DRQNConfig, TrainConfig  # noqa: E402
 from mitlc.learn.dqn import DQNLearner, DQNPolicy  # noqa: E402
 from mitlc.learn.drqn import DRQNLearner  # noqa: E402
+from mitlc.learn.evaluate import evaluate  # noqa: E402
 from mitlc.learn.exact import policy_success  # noqa: E402
 from mitlc.learn.nets import Encoder  # noqa: E402
 from mitlc.learn.run import RunError, Setting, load_learner, make_learner, prepare, train  # noqa: E402
@@ -224,3 +225,14 @@ def test_drqn_replay_covers_every_transition_once() -> None:
     if pending == 0:
         live_reward = float((data["reward"] * data["live"]).sum())
         assert live_reward == pytest.approx(rewards * config.drqn.reward_scale, rel=1e-5)
+
+
+def test_pomdp_evaluation_brackets_the_optimum(tmp_path: Path) -> None:
+    train(CASE3, tiny("drqn", 20), tmp_path / "run")
+    report = evaluate(tmp_path / "run", episodes=200)
+    assert report.pomdp and report.exact is None
+    assert report.lower is not None
+    assert 0.99 < report.lower <= report.optimum + 1e-12  # the office loses ~nothing
+    data = report.summary()
+    assert data["lower_bound"] == report.lower
+    assert data["lower_ratio"] == pytest.approx(report.success_rate / report.lower)
