@@ -102,7 +102,7 @@ def test_case3_office_loses_nothing_to_its_observations() -> None:
     assert value == pytest.approx(full, abs=1e-8)
 
 
-def test_mdp_worlds_and_jumps_are_refused(tmp_path: Path) -> None:
+def test_mdp_worlds_jumps_and_large_problems_are_refused(tmp_path: Path) -> None:
     world = load_world(PAPER / "case1.yaml")
     product = build_product(world, translate(parse(world.spec, world.spec_source)))
     with pytest.raises(ObservedBoundError, match="no observation model"):
@@ -112,6 +112,9 @@ def test_mdp_worlds_and_jumps_are_refused(tmp_path: Path) -> None:
     assert (jumpy.action < 0).any()
     with pytest.raises(ObservedBoundError, match="epsilon jumps"):
         observed_bound(noisy, jumpy)
+    plain = build_product(noisy, translate(parse(noisy.spec, noisy.spec_source)))
+    with pytest.raises(ObservedBoundError, match="past the limit of 1,000"):
+        observed_bound(noisy, plain, max_cells=1_000)
 
 
 def test_check_command_reports_the_bound_for_a_pomdp() -> None:

@@ -26,14 +26,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
+from scipy.sparse import csr_matrix, vstack
 
 from mitlc.check.topo import spans
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import FloatArray, IntArray, World
 
-MAX_CELLS = 200_000_000
-"""The largest ``horizon x (observation, state) pairs`` searched; larger problems raise."""
+MAX_CELLS = 20_000_000
+"""The largest ``horizon x (observation, state) pairs`` searched by default (a few seconds:
+a 20x20 noisy grid with an 81-step horizon is 10 million, 2.4 s); larger problems raise."""
 
 
 class ObservedBoundError(ValueError):
@@ -62,53 +63,90 @@ class ObservedBound:
 
 
 @dataclass(frozen=True, slots=True)
-class _Model:
-    """The product with its acceptance mask: ``moves[a]`` maps state ``z = mask * n + x`` to
-    its successors under world action ``a``; ``pair_*`` list each state's observations."""
+class _Observing:
+    """Who sees what: every (state, observation) pair with positive probability, its state,
+    probability and key index; ``key_matrix[k, z]`` sums the pairs of state ``z`` and key
+    ``k`` (their probabilities)."""
 
-    moves: tuple[csr_matrix, ...]
-    terminal: FloatArray
-    absorbing: IntArray
-    absorbing_values: FloatArray
-    initial: int
     pair_state: IntArray
     pair_prob: FloatArray
     pair_key: IntArray
     keys: IntArray
+    key_matrix: csr_matrix
+
+    @staticmethod
+    def of(
+        pair_state: IntArray, pair_prob: FloatArray, pair_key: IntArray, size: int
+    ) -> _Observing:
+        """The pairs given by state, probability and key value (``size``: the states)."""
+        keys, index = np.unique(pair_key, return_inverse=True)
+        index = index.astype(np.int64)
+        matrix = csr_matrix((pair_prob, (index, pair_state)), shape=(len(keys), size))
+        return _Observing(pair_state, pair_prob, index, keys.astype(np.int64), matrix)
+
+
+@dataclass(frozen=True, slots=True)
+class _Model:
+    """The product with its acceptance mask: row ``a * size + z`` of ``moves`` lists the
+    successors of state ``z = mask * n + x`` under world action ``a`` (``moves_t``: its
+    transpose); ``observing``: the world's observations and the automaton state."""
+
+    moves: csr_matrix
+    moves_t: csr_matrix
+    actions: int
+    terminal: FloatArray
+    absorbing: IntArray
+    absorbing_values: FloatArray
+    initial: int
+    observing: _Observing
     num_q: int
+
+    @property
+    def size(self) -> int:
+        """States ``(mask, x)``, the unreachable masks included."""
+        return len(self.terminal)
 
 
 def observed_bound(
-    world: World, product: Product, *, horizon: int | None = None, max_sweeps: int = 100
+    world: World,
+    product: Product,
+    *,
+    horizon: int | None = None,
+    max_sweeps: int = 30,
+    tolerance: float = 1e-9,
+    max_cells: int = MAX_CELLS,
 ) -> ObservedBound:
-    """The best observation-based policy found in at most ``max_sweeps`` sweeps and its exact
-    success probability within ``horizon`` (default: the world's); see the module docstring.
-    Raises :class:`ObservedBoundError` for a world without observations, a product with
-    epsilon jumps (a choice the table does not express) or a problem past ``MAX_CELLS``."""
+    """The best observation-based policy found and its exact success probability within
+    ``horizon`` (default: the world's); see the module docstring. The sweeps stop when one
+    gains at most ``tolerance``, or after ``max_sweeps``. Raises :class:`ObservedBoundError` for
+    a world without observations, a product with epsilon jumps (a choice the table does not
+    express) or more than ``max_cells`` steps x (observation, state) pairs."""
     steps = world.horizon if horizon is None else horizon
     model = _model(world, product)
-    if steps * len(model.pair_state) > MAX_CELLS:
+    observing = model.observing
+    if steps * len(observing.pair_state) > max_cells:
         raise ObservedBoundError(
-            f"{steps} steps x {len(model.pair_state):,} (observation, state) pairs is past "
-            f"the limit of {MAX_CELLS:,}"
+            f"{steps} steps x {len(observing.pair_state):,} (observation, state) pairs is past "
+            f"the limit of {max_cells:,} (observed_bound's max_cells lifts it)"
         )
-    start = np.zeros(model.terminal.shape[0])
+    start = np.zeros(model.size)
     start[model.initial] = 1.0
     # The fully observable optimum's state distribution weighs the first sweep.
-    identity = _identity_pairs(model)
+    states = np.unique(observing.pair_state)
+    identity = _Observing.of(states, np.ones(len(states)), states, model.size)
     full = _backward(model, identity, [np.ones_like(start)] * steps, None)[1]
     weights = _forward(model, identity, full, start)
     policy: IntArray | None = None
     values: list[float] = []
     for _ in range(max_sweeps):
-        value, policy = _backward(model, model, weights, policy)
-        if values and value <= values[-1] + 1e-13:
+        value, policy = _backward(model, observing, weights, policy)
+        if values and value <= values[-1] + tolerance:
             values.append(max(value, values[-1]))
             break
         values.append(value)
-        weights = _forward(model, model, policy, start)
+        weights = _forward(model, observing, policy, start)
     assert policy is not None
-    return ObservedBound(values[-1], tuple(values), model.keys, policy, model.num_q)
+    return ObservedBound(values[-1], tuple(values), observing.keys, policy, model.num_q)
 
 
 def _model(world: World, product: Product) -> _Model:
@@ -121,12 +159,13 @@ def _model(world: World, product: Product) -> _Model:
     per_state = np.diff(product.choice_ptr)
     if (per_state[live] != actions).any():
         raise ObservedBoundError("some product state lacks a world action")
-    moves = []
+    blocks = []
     for a in range(actions):
         choices = product.choice_ptr[live] + a  # a state's choices are its actions in order
         if (product.action[choices] != a).any():
             raise ObservedBoundError("the product's choices are not in action order")
-        moves.append(_move_matrix(product, live, choices, masks))
+        blocks.append(_move_matrix(product, live, choices, masks))
+    moves = vstack(blocks, format="csr")
     full_mask = masks - 1
     terminal = np.zeros(masks * n)
     terminal[full_mask * n + live] = 1.0
@@ -135,17 +174,15 @@ def _model(world: World, product: Product) -> _Model:
     terminal[absorbing] = absorbing_values
     num_q = int(product.automaton_state.max()) + 1
     pair_state, pair_prob, pair_key = _pairs(world, product, live, masks, num_q)
-    keys, pair_index = np.unique(pair_key, return_inverse=True)
     return _Model(
-        moves=tuple(moves),
+        moves=moves,
+        moves_t=moves.T.tocsr(),
+        actions=actions,
         terminal=terminal,
         absorbing=absorbing,
         absorbing_values=absorbing_values,
         initial=int(product.initial),
-        pair_state=pair_state,
-        pair_prob=pair_prob,
-        pair_key=pair_index.astype(np.int64),
-        keys=keys.astype(np.int64),
+        observing=_Observing.of(pair_state, pair_prob, pair_key, masks * n),
         num_q=num_q,
     )
 
@@ -185,68 +222,45 @@ def _pairs(
     )
 
 
-@dataclass(frozen=True, slots=True)
-class _Pairs:
-    pair_state: IntArray
-    pair_prob: FloatArray
-    pair_key: IntArray
-    keys: IntArray
-
-
-def _identity_pairs(model: _Model) -> _Pairs:
-    """Every live state observed as itself: the fully observable problem."""
-    states = np.unique(model.pair_state)
-    return _Pairs(states, np.ones(len(states)), np.arange(len(states)), states)
-
-
 def _forward(
-    model: _Model, pairs: _Model | _Pairs, policy: IntArray, start: FloatArray
+    model: _Model, observing: _Observing, policy: IntArray, start: FloatArray
 ) -> list[FloatArray]:
     """The distribution over states at each step under ``policy`` (mass that reaches an
     absorbing state stops there)."""
-    size, actions = len(start), len(model.moves)
+    size, pairs = model.size, observing
     found, d = [], start.copy()
     for t in range(len(policy)):
         found.append(d)
         chosen = policy[t][pairs.pair_key]
         w = d[pairs.pair_state] * pairs.pair_prob
-        split = np.bincount(chosen * size + pairs.pair_state, w, minlength=actions * size)
-        d = sum(
-            (move.T @ split[a * size : (a + 1) * size] for a, move in enumerate(model.moves)),
-            np.zeros(size),
-        )
+        split = np.bincount(chosen * size + pairs.pair_state, w, minlength=model.actions * size)
+        d = np.asarray(model.moves_t @ split)
     return found
 
 
 def _backward(
-    model: _Model, pairs: _Model | _Pairs, weights: list[FloatArray], current: IntArray | None
+    model: _Model, observing: _Observing, weights: list[FloatArray], current: IntArray | None
 ) -> tuple[float, IntArray]:
     """One backward pass: the improved policy, step by step from the last, and its exact value
     from the initial state (``weights[t]``: the distribution at step ``t`` that weighs the
     choice; ``current``: the policy kept on ties)."""
-    steps, count = len(weights), len(pairs.keys)
+    steps, count, pairs = len(weights), len(observing.keys), observing
     policy = np.zeros((steps, count), dtype=np.int64)
     values = model.terminal.copy()
+    keys = np.arange(count)
     for t in range(steps - 1, -1, -1):
-        q = np.stack([move @ values for move in model.moves])  # (actions, states)
-        q_pairs = q[:, pairs.pair_state] * pairs.pair_prob  # (actions, pairs)
-        mass = weights[t][pairs.pair_state]
-        score = _per_key(pairs.pair_key, q_pairs * mass, count)
-        plain = _per_key(pairs.pair_key, q_pairs, count)
-        weighted = np.bincount(pairs.pair_key, mass, minlength=count) > 0
-        choice = np.where(weighted, score.argmax(axis=0), plain.argmax(axis=0))
+        q = np.asarray(model.moves @ values).reshape(model.actions, model.size)
+        mass = weights[t]
+        score = np.asarray(pairs.key_matrix @ (q * mass).T)  # (keys, actions)
+        weighted = np.asarray(pairs.key_matrix @ mass) > 0
+        choice = score.argmax(axis=1)
+        if not weighted.all():  # keys this policy never meets: the unweighted best
+            choice = np.where(weighted, choice, np.asarray(pairs.key_matrix @ q.T).argmax(axis=1))
         if current is not None:
-            keep = score[current[t], np.arange(count)] >= score.max(axis=0) - 1e-15
+            keep = score[keys, current[t]] >= score[keys, choice] - 1e-15
             choice = np.where(weighted & keep, current[t], choice)
         policy[t] = choice
-        chosen = choice[pairs.pair_key]
-        values = np.bincount(
-            pairs.pair_state, q_pairs[chosen, np.arange(len(chosen))], minlength=len(values)
-        ).astype(np.float64)
+        gained = q[choice[pairs.pair_key], pairs.pair_state] * pairs.pair_prob
+        values = np.bincount(pairs.pair_state, gained, minlength=model.size).astype(np.float64)
         values[model.absorbing] = model.absorbing_values
     return float(values[model.initial]), policy
-
-
-def _per_key(keys: IntArray, rows: FloatArray, count: int) -> FloatArray:
-    """``out[a, k] = sum(rows[a, i] for i with keys[i] == k)``."""
-    return np.stack([np.bincount(keys, row, minlength=count) for row in rows])
