@@ -12,7 +12,7 @@ import sys
 from collections.abc import Callable
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
@@ -24,11 +24,14 @@ from mitlc.automata.hoa import to_hoa, to_hoa_stream
 from mitlc.automata.runs import run_states
 from mitlc.cli_learn import register as register_learning
 from mitlc.errors import MitlcError, SourceLocation, SpecError
-from mitlc.product.explicit import Product
 from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
 from mitlc.syntax.tree import tree_text
 from mitlc.traces import TraceError, read_trace, trace_columns
 from mitlc.worlds.model import World
+
+if TYPE_CHECKING:
+    from mitlc.check.observed import ObservedBound
+    from mitlc.product.explicit import Product
 
 app = typer.Typer(
     name="mitlc",
@@ -314,12 +317,18 @@ def check_command(
         except ValueError as err:
             raise UsageError(f"mitlc: --export-dot: {err}") from None
         write_atomically(export_dot, dot.encode("utf-8"))
-    if policy is not None:
-        text = _json_dumps(report.policy_data(world)) + "\n"
-        write_atomically(policy, text.encode("utf-8"))
     summary = report.summary()
+    observed, why = _observed(world, report.product) if world.is_pomdp else (None, "")
     if world.is_pomdp:
-        summary["pmax_horizon_observed"] = _observed(world, report.product)
+        summary["pmax_horizon_observed"] = observed.value if observed is not None else why
+    if policy is not None:
+        if observed is not None:
+            data: object = _observed_policy(world, observed)
+        elif world.is_pomdp:
+            raise UsageError(f"mitlc: --policy: no observation-based policy ({why})")
+        else:
+            data = report.policy_data(world)
+        write_atomically(policy, (_json_dumps(data) + "\n").encode("utf-8"))
     if world.is_pomdp and pomdp_bounds:
         summary["bounds"] = _pomdp_bounds(world, digital)
     if as_json:
@@ -333,14 +342,34 @@ def check_command(
         typer.echo(f"{key:<{width}}  {shown}")
 
 
-def _observed(world: World, product: Product) -> float | str:
-    """The exact success of the best observation-based policy found, or why there is none."""
+def _observed(world: World, product: Product) -> tuple[ObservedBound | None, str]:
+    """The best observation-based policy found and its exact success, or why there is none."""
     from mitlc.check.observed import ObservedBoundError, observed_bound
 
     try:
-        return observed_bound(world, product).value
+        return observed_bound(world, product), ""
     except ObservedBoundError as err:
-        return f"unavailable: {err}"
+        return None, f"unavailable: {err}"
+
+
+def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
+    """The observation-based policy as data: an action per step, observation and automaton
+    state that it meets."""
+    assert world.observations is not None
+    names = world.observations.names
+    return {
+        "kind": "observation-based",
+        "pmax_horizon_observed": found.value,
+        "rows": [
+            {
+                "step": t,
+                "observation": names[o],
+                "automaton_state": q,
+                "action": world.actions[a],
+            }
+            for t, o, q, a in found.rows()
+        ],
+    }
 
 
 def _pomdp_bounds(world: World, digital: DigitalAutomaton) -> dict[str, object]:

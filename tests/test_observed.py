@@ -124,3 +124,30 @@ def test_check_command_reports_the_bound_for_a_pomdp() -> None:
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert 0.9 < data["pmax_horizon_observed"] <= data["pmax_horizon"]
+
+
+def test_rows_list_the_keys_met_with_their_actions(tmp_path: Path) -> None:
+    _, _, found = bound_of(noisy_world(tmp_path))
+    rows = found.rows()
+    assert rows == sorted(rows)
+    assert {t for t, *_ in rows} == set(range(found.policy.shape[0]))
+    assert all(found.action(t, o, q) == a for t, o, q, a in rows)
+    assert len({q for t, _, q, _ in rows if t == 0}) == 1  # the start's automaton state
+
+
+def test_check_policy_of_a_pomdp_is_observation_based(tmp_path: Path) -> None:
+    out = tmp_path / "policy.json"
+    world = PAPER / "case3-office.yaml"
+    result = CliRunner().invoke(
+        app, ["check", str(world), "--json", "--no-pomdp-bounds", "--policy", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    policy = json.loads(out.read_text(encoding="utf-8"))
+    assert policy["kind"] == "observation-based"
+    assert policy["pmax_horizon_observed"] == json.loads(result.stdout)["pmax_horizon_observed"]
+    loaded = load_world(world)
+    assert loaded.observations is not None
+    for row in policy["rows"]:
+        assert row["action"] in loaded.actions
+        assert row["observation"] in loaded.observations.names
+        assert 0 <= row["step"] < loaded.horizon

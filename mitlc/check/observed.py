@@ -30,7 +30,7 @@ from scipy.sparse import csr_matrix, vstack
 
 from mitlc.check.topo import spans
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
-from mitlc.worlds.model import FloatArray, IntArray, World
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
 MAX_CELLS = 20_000_000
 """The largest ``horizon x (observation, state) pairs`` searched by default (a few seconds:
@@ -52,6 +52,23 @@ class ObservedBound:
     keys: IntArray
     policy: IntArray
     num_q: int
+    reached: BoolArray
+    """``reached[t, k]``: the policy meets key ``k`` at step ``t`` with positive probability."""
+
+    def rows(self) -> list[tuple[int, int, int, int]]:
+        """``(step, observation, automaton state, action)`` for every key the policy meets
+        at that step, by step and key."""
+        steps, index = np.nonzero(self.reached)
+        keys = self.keys[index]
+        return list(
+            zip(
+                steps.tolist(),
+                (keys // self.num_q).tolist(),
+                (keys % self.num_q).tolist(),
+                self.policy[steps, index].tolist(),
+                strict=True,
+            )
+        )
 
     def action(self, t: int, observation: int, automaton_state: int) -> int:
         """The policy's action at step ``t`` (0 for a key the search never met)."""
@@ -146,7 +163,10 @@ def observed_bound(
         values.append(value)
         weights = _forward(model, observing, policy, start)
     assert policy is not None
-    return ObservedBound(values[-1], tuple(values), observing.keys, policy, model.num_q)
+    met = [observing.key_matrix @ d > 0 for d in _forward(model, observing, policy, start)]
+    return ObservedBound(
+        values[-1], tuple(values), observing.keys, policy, model.num_q, np.array(met, dtype=bool)
+    )
 
 
 def _model(world: World, product: Product) -> _Model:
