@@ -21,7 +21,13 @@ from scipy.sparse import csc_matrix, csr_matrix, identity
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
-from mitlc.check.topo import gather, spans, state_graph, topological_values
+from mitlc.check.topo import (
+    backward_reachable,
+    gather,
+    spans,
+    state_graph,
+    topological_values,
+)
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -123,8 +129,8 @@ def max_reach(product: Product, target: BoolArray, graph: csr_matrix | None = No
     (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the caller has it)."""
     matrix = _choice_matrix(product)
     into = matrix.tocsc()
-    can_reach, _ = _backward_search(product, into, np.ones(product.num_choices, bool), target)
-    zero = ~can_reach
+    graph = state_graph(product) if graph is None else graph
+    zero = ~backward_reachable(graph, target)
     values = topological_values(product, matrix, target, zero, graph)
     sweeps = 0
     for sweeps in range(1, 100_001):  # noqa: B007 - the count says whether the seed was exact

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from mitlc.product.explicit import Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
@@ -34,6 +34,22 @@ def state_graph(product: Product) -> csr_matrix:
     graph = csr_matrix((np.ones(len(t.targets)), t.targets.copy(), indptr), shape=(n, n))
     graph.sum_duplicates()
     return graph
+
+
+def backward_reachable(graph: csr_matrix, target: BoolArray) -> BoolArray:
+    """The states of ``graph`` with a path to ``target`` (``target`` included): one
+    breadth-first search in C over the reversed graph, from a virtual state before every
+    target state."""
+    n = graph.shape[0]
+    back = graph.T.tocsr()
+    sources = np.flatnonzero(target)
+    indptr = np.concatenate([back.indptr, [back.indptr[-1] + len(sources)]])
+    indices = np.concatenate([back.indices, sources])
+    extended = csr_matrix((np.ones(len(indices)), indices, indptr), shape=(n + 1, n + 1))
+    order = breadth_first_order(extended, n, directed=True, return_predecessors=False)
+    found = np.zeros(n + 1, dtype=bool)
+    found[order] = True
+    return found[:n]
 
 
 def spans(ptr: IntArray, keys: IntArray) -> IntArray:
