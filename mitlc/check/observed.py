@@ -157,13 +157,13 @@ def observed_bound(
     values: list[float] = []
     for _ in range(max_sweeps):
         value, policy = _backward(model, observing, weights, policy)
+        weights = _forward(model, observing, policy, start)  # the next sweep's, or `reached`
         if values and value <= values[-1] + tolerance:
             values.append(max(value, values[-1]))
             break
         values.append(value)
-        weights = _forward(model, observing, policy, start)
     assert policy is not None
-    met = [observing.key_matrix @ d > 0 for d in _forward(model, observing, policy, start)]
+    met = [observing.key_matrix @ d > 0 for d in weights]
     return ObservedBound(
         values[-1], tuple(values), observing.keys, policy, model.num_q, np.array(met, dtype=bool)
     )
