@@ -103,12 +103,11 @@ def topological_values(
     matrix: csr_matrix,
     target: BoolArray,
     zero: BoolArray,
-    graph: csr_matrix | None = None,
+    graph: csr_matrix,
 ) -> FloatArray:
     """The maximal probabilities of reaching ``target`` (``zero``: states that cannot);
-    ``graph`` is :func:`state_graph`'s, when the caller has it."""
+    ``graph`` is the product's :func:`state_graph`."""
     n = product.num_states
-    graph = state_graph(product) if graph is None else graph
     count, labels = connected_components(graph, directed=True, connection="strong")
     if count == n:  # every component a single state: the state graph is the condensation
         order, ptr = layers(graph)
