@@ -5,9 +5,9 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: graphviz demo test verify bench bench-check bench-learn bench-throughput lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput lint golden clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
@@ -18,21 +18,23 @@ $(STAMP): pyproject.toml
 # (!a U[5,10] a) & (!b U[15,20] b)). Check it exactly, learn it with tabular Q-learning (a few
 # seconds), print the learned policy's success beside the optimum, and draw the run
 # (learning curve, trajectories on the grid, the timed automaton) under build/case1-q/.
-demo: graphviz $(STAMP)
+demo: system-deps $(STAMP)
 	$(BIN)/mitlc check specs/paper/case1.yaml
 	rm -rf build/case1-q
 	$(BIN)/mitlc train specs/paper/case1.yaml --out build/case1-q
 	$(BIN)/mitlc plot build/case1-q
 
-# PNGs of automata, products and runs are drawn by Graphviz's `dot` (a system package).
-graphviz:
-	@command -v dot >/dev/null 2>&1 || { echo "Graphviz's 'dot' is missing: install it first (apt-get install graphviz, or brew install graphviz); .ci/run does this"; exit 1; }
+# System packages, installed where missing: Graphviz's `dot` (it draws the PNGs of automata,
+# products and runs) and Python's venv. apt-get as root or with password-less sudo; otherwise
+# it says what to run.
+system-deps:
+	@PYTHON=$(PYTHON) scripts/system-deps
 
 lint: $(STAMP)
 	$(BIN)/ruff check mitlc tests bench
 	$(BIN)/mypy
 
-test: graphviz lint
+test: system-deps lint
 	$(BIN)/pytest -q
 
 # Longer seeded checks (the slow marker, excluded from `make test`): 240,000 (formula, lasso)
