@@ -99,14 +99,25 @@ def train_command(
     ] = None,
     seed: Annotated[int | None, typer.Option("--seed", help="The run's seed.")] = None,
     episodes: Annotated[
-        int | None, typer.Option("--episodes", help="Episodes to train (in all).")
+        int | None,
+        typer.Option(
+            "--episodes",
+            help="The run's total number of episodes, also with --resume (where it must be more "
+            "than the run has). The run stops at the first step at which at least this many "
+            "episodes have ended, so it may end up to num_envs - 1 above it.",
+        ),
     ] = None,
     out: Annotated[
         Path | None,
         typer.Option("--out", help="The run directory (default: runs/WORLD-ALGO-sSEED)."),
     ] = None,
     resume: Annotated[
-        bool, typer.Option("--resume", help="Continue the run in --out from its checkpoint.")
+        bool,
+        typer.Option(
+            "--resume",
+            help="Continue the run in --out from its latest checkpoint (one run at a time holds "
+            "a run directory).",
+        ),
     ] = False,
     spec: Annotated[
         str | None, typer.Option("--spec", help="A spec file instead of the world's task.")

@@ -15,6 +15,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from mitlc.learn import checkpoint  # noqa: E402
 from mitlc.learn.base import Learner, Policy  # noqa: E402
 from mitlc.learn.config import DQNConfig, DRQNConfig, TrainConfig  # noqa: E402
 from mitlc.learn.dqn import DQNLearner, DQNPolicy  # noqa: E402
@@ -78,8 +79,7 @@ def metrics(directory: Path) -> list[dict[str, Any]]:
 
 
 def weights(directory: Path) -> dict[str, Any]:
-    with (directory / "checkpoint.pkl").open("rb") as handle:
-        saved: dict[str, Any] = pickle.load(handle)["learner"]
+    saved: dict[str, Any] = checkpoint.load(directory).state["learner"]
     return saved["net"]  # type: ignore[no-any-return]
 
 

@@ -288,6 +288,24 @@ def test_run_directories_are_protected(tmp_path: Path) -> None:
     assert more.episodes >= 6000
 
 
+def test_episodes_on_resume_is_the_runs_total(tmp_path: Path) -> None:
+    """A resumed run ends at the first step with at least ``episodes`` ended: between N and
+    N + num_envs - 1; asking for no more than the checkpoint has is refused."""
+    calls = iter(range(10_000))
+    stopped = train(CASE1, config(Q_SMALL), tmp_path / "run", should_stop=lambda: next(calls) == 20)
+    assert 0 < stopped.episodes < 4000
+    with pytest.raises(
+        RunError, match=f"already has {stopped.episodes:,} episodes.*the run's total"
+    ):
+        train(CASE1, config(Q_SMALL, episodes=stopped.episodes), tmp_path / "run", resume=True)
+    for total in (stopped.episodes + 1, 2400, 5000):
+        result = train(CASE1, config(Q_SMALL, episodes=total), tmp_path / "run", resume=True)
+        assert total <= result.episodes < total + 64
+        assert lines(tmp_path / "run" / "metrics.jsonl")[-1]["episodes"] == result.episodes
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["episodes"] == result.episodes
+
+
 def test_resume_drops_metrics_written_after_the_checkpoint(tmp_path: Path) -> None:
     settings = config(Q_SMALL)
     train(CASE1, settings, tmp_path / "straight")

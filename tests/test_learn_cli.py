@@ -25,12 +25,12 @@ def test_train_writes_a_run_and_reports_it_beside_the_optimum(tmp_path: Path) ->
     result = runner.invoke(app, ["train", CASE1, "--out", str(out), *SMALL])
     assert result.exit_code == 0, result.output
     assert "optimum          0.974021" in result.output and "learned, exact" in result.output
-    assert {p.name for p in out.iterdir()} == {
-        "config.json",
-        "metrics.jsonl",
-        "checkpoint.pkl",
-        "summary.json",
-    }
+    names = {p.name for p in out.iterdir()}
+    steps = json.loads((out / "checkpoint.json").read_text())["steps"]
+    latest = f"checkpoint_{steps:012d}_steps"
+    assert {"config.json", "metrics.jsonl", "summary.json", ".lock", "checkpoint.json"} < names
+    assert {f"{latest}.json", f"{latest}.npz"} < names and not any(".pkl" in n for n in names)
+    assert len([n for n in names if n.endswith("_steps.json")]) == 2  # keep_checkpoints
     config = json.loads((out / "config.json").read_text())
     assert config["train"]["q"]["num_envs"] == 64 and config["train"]["episodes"] == 3000
     assert "(!a U[5,10] a) & (!b U[15,20] b)" in config["spec"]
@@ -92,7 +92,7 @@ def test_ctrl_c_checkpoints_and_resume_finishes(tmp_path: Path) -> None:
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130, err
     assert "checkpoint saved" in err and "--resume" in err
-    assert (out / "checkpoint.pkl").exists() and not (out / "summary.json").exists()
+    assert (out / "checkpoint.json").exists() and not (out / "summary.json").exists()
     stopped = json.loads((out / "metrics.jsonl").read_text().splitlines()[-1])["episodes"]
     done = subprocess.run(
         [*args, "--resume", "--episodes", str(stopped + 2000), "--no-eval"],
@@ -103,3 +103,38 @@ def test_ctrl_c_checkpoints_and_resume_finishes(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr
     assert json.loads((out / "summary.json").read_text())["episodes"] >= stopped + 2000
+
+
+def test_a_second_run_in_the_same_directory_is_refused(tmp_path: Path) -> None:
+    """Two `mitlc train --resume` at once: the second exits 1 naming the first's process; the
+    first's metrics stay one line per window."""
+    out = tmp_path / "run"
+    assert (
+        runner.invoke(app, ["train", CASE1, "--out", str(out), *SMALL, "--no-eval"]).exit_code == 0
+    )
+    args = [sys.executable, "-m", "mitlc", "train", CASE1, "--out", str(out), "--resume", "-q"]
+    first = subprocess.Popen(
+        [*args, "--episodes", "50000000", "--no-eval"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if (out / ".lock").read_text().startswith(f"{first.pid}\n"):
+                break
+            time.sleep(0.05)
+        second = subprocess.run(
+            [*args, "--episodes", "60000000"], capture_output=True, text=True, cwd=ROOT, timeout=60
+        )
+        assert second.returncode == 1, second.stderr
+        assert f"in use by process {first.pid} (python" in second.stderr
+        assert "-m mitlc train" in second.stderr and "Traceback" not in second.stderr
+    finally:
+        os.kill(first.pid, signal.SIGINT)
+        first.communicate(timeout=60)
+    assert first.returncode == 130
+    episodes = [json.loads(line)["episodes"] for line in (out / "metrics.jsonl").open()]
+    assert episodes == sorted(set(episodes))

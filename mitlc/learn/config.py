@@ -138,12 +138,16 @@ class TrainConfig:
     algo: Algorithm = "q"
     seed: int = 0
     episodes: int = 300_000
-    """Default: ``DEFAULT_EPISODES[algo]``."""
+    """The run's total, also when it is resumed (default: ``DEFAULT_EPISODES[algo]``); it stops
+    at the first vector step with at least this many ended, so up to ``num_envs - 1`` more."""
     log_every: int = 3_000
     """Episodes between lines of ``metrics.jsonl`` (default: a hundredth of the episodes)."""
     checkpoint_every: int = 30_000
     """Episodes between checkpoints, also written at the end and on interruption (default: a
     tenth of the episodes)."""
+    keep_checkpoints: int = 2
+    """Checkpoints kept in the run directory (the latest and the ones before it); older ones
+    are deleted."""
     eval_episodes: int = 10_000
     discount: Discount = field(default_factory=Discount)
     shaping: float = 0.0
@@ -221,12 +225,15 @@ def _check_ranges(config: object, path: str) -> None:
             raise ConfigError(f"{where}: expected a value in [0, 1], got {value!r}")
         if f.name in _POSITIVE and value <= 0:
             raise ConfigError(f"{where}: expected a positive value, got {value!r}")
+        if f.name in _AT_MOST and value > _AT_MOST[f.name]:
+            raise ConfigError(f"{where}: expected at most {_AT_MOST[f.name]}, got {value!r}")
 
 
 _POSITIVE = {
     "episodes",
     "log_every",
     "checkpoint_every",
+    "keep_checkpoints",
     "num_envs",
     "alpha",
     "hidden",
@@ -239,6 +246,10 @@ _POSITIVE = {
     "sequence_length",
     "eval_episodes",
 }
+
+
+_AT_MOST = {"layers": 100}
+"""Bounds where a bigger value would only make the learner's construction loop for ages."""
 
 
 def _nest(overrides: Mapping[str, Any]) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from mitlc.learn.nets import (
     anneal,
     bootstrap,
     build,
+    check_indices,
     configure_torch,
     deep_state,
     gradient_step,
@@ -200,7 +201,8 @@ class DQNLearner(Learner):
         return deep_state(self)
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
+        """Restore :meth:`state_dict` (``ValueError`` or ``RuntimeError`` if it does not fit)."""
+        check_indices(saved["replay"]["data"], self.tables, "replay.")
         load_deep_state(self, saved)
 
     def policy(self) -> DQNPolicy:

@@ -33,6 +33,7 @@ from mitlc.learn.nets import (
     anneal,
     bootstrap,
     build,
+    check_indices,
     configure_torch,
     deep_state,
     gradient_step,
@@ -306,7 +307,13 @@ class DRQNLearner(Learner):
         }
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
+        """Restore :meth:`state_dict` (``ValueError`` or ``RuntimeError`` if it does not fit)."""
+        check_indices(saved["replay"]["data"], self.tables, "replay.")
+        check_indices(saved["streams"], self.tables, "streams.")
+        check_indices({"previous": saved["previous"]}, self.tables, "")
+        length, longest = saved["length"], self.streams.data["action"].shape[1]
+        if np.size(length) and not 0 <= int(np.min(length)) <= int(np.max(length)) < longest:
+            raise ValueError(f"length: values outside 0..{longest - 1}")
         load_deep_state(self, saved)
         self.streams.data = {k: np.array(v) for k, v in saved["streams"].items()}
         self.streams.length = np.array(saved["length"])

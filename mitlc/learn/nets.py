@@ -196,10 +196,24 @@ class Ring:
         }
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
-        self.position, self.size = int(saved["position"]), int(saved["size"])
-        for name, values in saved["data"].items():
-            self.data[name][: self.size] = values
+        """Restore :meth:`state_dict` (``ValueError`` if it does not fit this memory)."""
+        position, size, data = int(saved["position"]), int(saved["size"]), saved["data"]
+        if not 0 <= size <= self.capacity:
+            raise ValueError(f"replay size {size} outside 0..{self.capacity}")
+        if not 0 <= position < self.capacity or (size < self.capacity and position != size):
+            raise ValueError(f"replay position {position} does not fit its size {size}")
+        if data.keys() != self.data.keys():
+            raise ValueError(f"replay fields {sorted(data)}, expected {sorted(self.data)}")
+        for name, values in data.items():
+            mine = self.data[name]
+            if values.shape != (size, *mine.shape[1:]) or values.dtype != mine.dtype:
+                raise ValueError(
+                    f"replay field {name}: {values.dtype} {values.shape}, expected "
+                    f"{mine.dtype} {(size, *mine.shape[1:])}"
+                )
+        self.position, self.size = position, size
+        for name, values in data.items():
+            self.data[name][:size] = values
 
 
 def tensors(batch: dict[str, np.ndarray[Any, Any]], *names: str) -> list[torch.Tensor]:
@@ -241,8 +255,56 @@ def deep_state(learner: DeepLearner) -> dict[str, Any]:
     }
 
 
+def check_indices(data: dict[str, Any], tables: Tables, where: str) -> None:
+    """``ValueError`` unless the index fields of ``data`` (arrays named as in the replay
+    memories: observations, automaton states, masks, actions, previous actions) lie in the
+    ranges of ``tables``, so that a restored memory cannot index outside the encoder."""
+    top = {
+        "observation": tables.num_observations,
+        "automaton": tables.num_automaton_states,
+        "mask": tables.all_sets + 1,
+        "action": tables.num_actions,
+        "previous": tables.num_actions,
+    }
+    for name, values in data.items():
+        high = top.get(name.removeprefix("next_"))
+        if high is None or not np.size(values):
+            continue
+        low = -1 if name == "previous" else 0
+        if int(np.min(values)) < low or int(np.max(values)) >= high:
+            raise ValueError(f"{where}{name}: values outside {low}..{high - 1}")
+
+
+def _check_optimizer(saved: dict[str, Any], optimizer: torch.optim.Optimizer) -> None:
+    """``ValueError`` unless ``saved`` is an Adam state for ``optimizer``'s parameters (torch
+    does not check the shapes of the moments, and a wrong one fails only at the next step)."""
+    mine = optimizer.state_dict()["param_groups"]
+    groups = saved["param_groups"]
+    if [g["params"] for g in groups] != [g["params"] for g in mine]:
+        raise ValueError("optimizer: parameter groups unlike this network's")
+    params = [p for group in optimizer.param_groups for p in group["params"]]
+    if not isinstance(saved["state"], dict):
+        raise ValueError("optimizer.state: expected a mapping")
+    for key, entry in saved["state"].items():
+        if not isinstance(key, int) or isinstance(key, bool) or not 0 <= key < len(params):
+            raise ValueError(f"optimizer.state: no parameter {key!r}")
+        if not isinstance(entry, dict) or set(entry) != {"step", "exp_avg", "exp_avg_sq"}:
+            raise ValueError(f"optimizer.state[{key}]: expected step, exp_avg, exp_avg_sq")
+        shape = params[key].shape
+        for name, expected in (("step", ()), ("exp_avg", shape), ("exp_avg_sq", shape)):
+            value = entry[name]
+            if not isinstance(value, torch.Tensor) or value.shape != expected:
+                raise ValueError(
+                    f"optimizer.state[{key}].{name}: expected a tensor of shape {tuple(expected)}"
+                )
+            if value.dtype != torch.float32:
+                raise ValueError(f"optimizer.state[{key}].{name}: expected float32")
+
+
 def load_deep_state(learner: DeepLearner, saved: dict[str, Any]) -> None:
-    """Restore :func:`deep_state` into ``learner``."""
+    """Restore :func:`deep_state` into ``learner`` (``ValueError`` or ``RuntimeError`` if it
+    does not fit)."""
+    _check_optimizer(saved["optimizer"], learner.optimizer)
     learner.net.load_state_dict(saved["net"])
     learner.target.load_state_dict(saved["target"])
     learner.optimizer.load_state_dict(copy.deepcopy(saved["optimizer"]))

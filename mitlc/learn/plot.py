@@ -16,7 +16,6 @@ each file is written atomically.
 from __future__ import annotations
 
 import itertools
-import json
 import textwrap
 from dataclasses import dataclass
 from io import BytesIO
@@ -33,6 +32,7 @@ from matplotlib.ticker import FuncFormatter
 from mitlc.automata import compile_formula
 from mitlc.automata.dot import render, to_dot, write_atomically
 from mitlc.learn.run import METRICS, RunError, Setting, load_learner, read_config
+from mitlc.learn.rundir import METRIC_FIELDS, read_metrics_rows
 from mitlc.learn.trajectories import Trajectory, rollouts
 from mitlc.syntax import parse
 from mitlc.worlds import read_world_file
@@ -64,18 +64,12 @@ class Metrics:
 
 
 def read_metrics(directory: Path) -> Metrics:
-    """The run's metrics; a line cut short (a killed run) ends them. :class:`PlotError` when
-    the file is missing or has no complete line."""
+    """The run's metrics; a last line cut short (a killed run) is left out. :class:`PlotError`
+    when the file is missing or has no complete line, :class:`RunError` when a line is bad."""
     path = directory / METRICS
     if not path.is_file():
         raise PlotError(f"{directory}: no {METRICS} (not a run directory, or not started)")
-    rows: list[tuple[float, float, float, float]] = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            data = json.loads(line)
-            rows.append((data["episodes"], data["success_rate"], data["return"], data["epsilon"]))
-        except (json.JSONDecodeError, KeyError, TypeError):
-            break
+    rows = [[row[name] for name in METRIC_FIELDS] for row in read_metrics_rows(path)]
     if not rows:
         raise PlotError(f"{path}: no metrics yet (the run has not logged a window)")
     columns = np.asarray(rows, dtype=np.float64).T
@@ -385,10 +379,10 @@ def plot_run(
     out = directory if out is None else Path(out)
     data, config = read_config(directory)
     metrics = read_metrics(directory)
+    setting, learner = load_learner(directory)
     name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
     curve = out / LEARNING_CURVE
     write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {config.algo}")))
-    setting, learner = load_learner(directory)
     drawn = rollouts(setting, learner.policy(), trajectories, seed)
     formula = textwrap.fill(setting.automaton.formula, 110)
     wins = sum(t.success for t in drawn)

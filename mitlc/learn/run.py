@@ -5,17 +5,27 @@ The directory holds
 * ``config.json``: the world file's path, the task, and the resolved :class:`TrainConfig`;
 * ``metrics.jsonl``: one line every ``log_every`` episodes (episodes, environment steps,
   success rate and mean return over those episodes, epsilon, seconds);
-* ``checkpoint.pkl``: the learner, the episodes in flight, every random state and the
-  counters, written atomically every ``checkpoint_every`` episodes, at the end, and when the
-  caller asks the run to stop (Ctrl-C in the CLI); ``train(..., resume=True)`` continues from it
-  and reaches exactly what an uninterrupted run with the same seed reaches;
-* ``summary.json`` at the end.
+* ``checkpoint_<steps>_steps.json``, ``.npz`` and (deep learners) ``.safetensors``, named by
+  ``checkpoint.json`` (see :mod:`mitlc.learn.checkpoint`: data only, never a pickle): the
+  learner, the episodes in flight, every random state and the counters, written every
+  ``checkpoint_every`` episodes, at the end, and when the caller asks the run to stop (Ctrl-C
+  in the CLI); the ``keep_checkpoints`` latest are kept. ``train(..., resume=True)`` continues
+  from the latest and reaches exactly what an uninterrupted run with the same seed reaches;
+* ``summary.json`` at the end;
+* ``.lock``: a run holds it (``flock``) while it trains, so a second ``train`` or resume in
+  the same directory is refused, naming the process that has it.
+
+``config.episodes`` is the run's total, resumed or not: the run stops at the first vector step
+at which at least that many episodes have ended, so it ends with between ``episodes`` and
+``episodes + num_envs - 1`` of them. Resuming asks for more than the checkpoint has.
+
+Anything wrong with a run directory's files is a :class:`RunError` naming the file and what is
+wrong, on one line.
 """
 
 from __future__ import annotations
 
 import json
-import pickle
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -28,8 +38,12 @@ from mitlc import __version__
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.automata.dot import write_atomically
 from mitlc.errors import MitlcError
+from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner, potential
-from mitlc.learn.config import TrainConfig, from_data, to_data
+from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
+from mitlc.learn.rundir import RunError as RunError
+from mitlc.learn.rundir import locked, read_json, read_metrics_rows
+from mitlc.learn.state import Stateful, one_line, restore
 from mitlc.learn.vec import Tables, VecProduct, tables
 from mitlc.product.env import relabel
 from mitlc.product.explicit import Product, build_product
@@ -39,13 +53,12 @@ from mitlc.worlds import World, load_world, read_world_file
 CONFIG, METRICS, CHECKPOINT, SUMMARY = (
     "config.json",
     "metrics.jsonl",
-    "checkpoint.pkl",
+    checkpoint.INDEX,
     "summary.json",
 )
-
-
-class RunError(MitlcError):
-    """A run directory that cannot be used as asked (missing, foreign, or in the way)."""
+ROWS, UNCHECKED = ("learner.replay.data",), ("learner.optimizer.state",)
+"""For :func:`mitlc.learn.state.conform`: a replay memory holds any number of rows up to
+its capacity; the optimiser's moments are checked against the network when restored."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +104,10 @@ def prepare(world_path: Path, config: TrainConfig, spec: str | None = None) -> S
     """Load the world, compile its task (``spec`` in its place if given), build the product."""
     world = load_world(world_path)
     if spec is not None and spec != world.spec:
-        world = relabel(world, read_world_file(world_path).labels, spec)
+        try:
+            world = relabel(world, read_world_file(world_path).labels, spec)
+        except ValueError as err:
+            raise RunError(f"{world_path}: the task {spec!r}: {err}") from None
     automaton = translate(parse(world.spec, world.spec_source))
     product = build_product(world, automaton)
     return Setting(world_path, world, automaton, product, tables(product, world), config)
@@ -125,49 +141,69 @@ def _rngs(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
 
 
 def read_config(directory: Path) -> tuple[dict[str, Any], TrainConfig]:
-    """``config.json`` of a run: its raw data and the settings."""
+    """``config.json`` of a run: its raw data (``world`` and ``spec`` checked to be text) and
+    the settings."""
     path = directory / CONFIG
     if not path.is_file():
         raise RunError(f"{directory}: not a run directory (no {CONFIG})")
+    data = read_json(path)
+    if not isinstance(data, dict):
+        raise RunError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    for key in ("world", "spec"):
+        value = data.get(key)
+        if not isinstance(value, str) or not value or "\x00" in value:
+            raise RunError(f"{path}: {key!r} is missing or not a usable string")
+    if not isinstance(data.get("train"), dict):
+        raise RunError(f"{path}: 'train' is missing or not a JSON object")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
         return data, from_data(data["train"])
-    except (json.JSONDecodeError, KeyError, TypeError) as err:
-        raise RunError(f"{path}: unreadable run configuration ({err})") from None
+    except ConfigError as err:
+        raise RunError(f"{path}: train.{err}") from None
 
 
 def load_setting(directory: Path) -> Setting:
     """The world, task and product of the run in ``directory``."""
     data, config = read_config(directory)
-    return prepare(Path(data["world"]), config, data["spec"])
+    if not Path(data["world"]).is_file():  # a device would be read for ever
+        raise RunError(f"{directory / CONFIG}: the run's world {data['world']} is not a file")
+    try:
+        return prepare(Path(data["world"]), config, data["spec"])
+    except OSError as err:
+        raise RunError(
+            f"{directory / CONFIG}: the run's world {data['world']}: {err.strerror or err}"
+        ) from None
+    except MitlcError as err:  # the world file or the task no longer compiles
+        raise RunError(f"{directory / CONFIG}: the run's world or task: {one_line(err)}") from None
 
 
 def load_learner(directory: Path) -> tuple[Setting, Learner]:
     """The run in ``directory``: its setting, and its learner as last checkpointed."""
     setting = load_setting(directory)
-    saved = load_checkpoint(directory)
-    learner = make_learner(setting, _rngs(setting.config.seed)[1])
-    learner.load_state_dict(saved["learner"])
+    _, learner_rng = _rngs(setting.config.seed)
+    learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
+    _restore(directory, learner, env, _Tally())
     return setting, learner
+
+
+def _build(
+    where: Path | str,
+    setting: Setting,
+    learner_rng: np.random.Generator,
+    env_rng: np.random.Generator,
+) -> tuple[Learner, VecProduct]:
+    """A fresh learner and simulator for the run's settings (sizes the machine cannot hold
+    are a :class:`RunError` naming ``where`` the settings come from)."""
+    try:
+        learner = make_learner(setting, learner_rng)
+        return learner, VecProduct(setting.tables, learner.num_envs, env_rng)
+    except (ValueError, TypeError, MemoryError, RuntimeError, OverflowError) as err:
+        raise RunError(
+            f"{where}: cannot build the learner from these settings ({one_line(err)})"
+        ) from None
 
 
 def _write_json(path: Path, data: Any) -> None:
     write_atomically(path, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode())
-
-
-def save_checkpoint(path: Path, state: dict[str, Any]) -> None:
-    """Pickle ``state`` to ``path`` atomically (a temporary file, then a rename)."""
-    write_atomically(path, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
-
-
-def load_checkpoint(directory: Path) -> dict[str, Any]:
-    """The run's last checkpoint (a pickle this package wrote: load only your own runs)."""
-    path = directory / CHECKPOINT
-    if not path.is_file():
-        raise RunError(f"{directory}: no {CHECKPOINT} to resume from")
-    with path.open("rb") as handle:
-        state: dict[str, Any] = pickle.load(handle)
-    return state
 
 
 class _Tally:
@@ -180,29 +216,38 @@ class _Tally:
         self.last_rate = self.last_return = 0.0
         self.seconds = 0.0
 
-    def state(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         return dict(vars(self))
 
-    def restore(self, saved: dict[str, Any]) -> None:
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        counts = ("episodes", "steps", "window_count", "window_success")
+        if any(saved[name] < 0 for name in counts):
+            raise ValueError(f"negative counts among {', '.join(counts)}")
         vars(self).update(saved)
 
 
-def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> dict[str, Any] | None:
-    """Create (or check, when resuming) the run directory; the checkpoint to resume from."""
-    if resume:
-        data, saved = read_config(directory)
-        if replace(saved, episodes=setting.config.episodes) != setting.config:
-            raise RunError(
-                f"{directory}: --resume with settings other than the run's own (only "
-                "--episodes may change)"
-            )
-        if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != spec:
-            raise RunError(f"{directory}: --resume with another world or task than the run's")
-        return load_checkpoint(directory)
-    if (directory / CONFIG).exists() or (directory / CHECKPOINT).exists():
-        raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
-    directory.mkdir(parents=True, exist_ok=True)
-    return None
+def _restore(directory: Path, learner: Learner, env: VecProduct, tally: _Tally) -> None:
+    """Load the run's latest checkpoint into fresh ``learner``, ``env`` and ``tally``."""
+    parts: dict[str, Stateful] = {"learner": learner, "env": env, "tally": tally}
+    loaded = restore(directory, parts, rows=ROWS, unchecked=UNCHECKED)
+    if tally.steps != loaded.steps:
+        raise RunError(f"{loaded.files['json']}: tally.steps is not the checkpoint's steps")
+
+
+def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> None:
+    """Check the run directory (locked by the caller) for a fresh run or a resumed one."""
+    if not resume:
+        if (directory / CONFIG).exists() or checkpoint.exists(directory):
+            raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
+        return
+    data, saved = read_config(directory)
+    if replace(saved, episodes=setting.config.episodes) != setting.config:
+        raise RunError(
+            f"{directory}: --resume with settings other than the run's own (only "
+            "--episodes may change)"
+        )
+    if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != spec:
+        raise RunError(f"{directory}: --resume with another world or task than the run's")
 
 
 def _save_config(directory: Path, setting: Setting) -> None:
@@ -222,14 +267,8 @@ def _truncate_metrics(path: Path, episodes: int) -> None:
     """Drop lines written after the checkpoint a resumed run starts from."""
     if not path.exists():
         return
-    kept = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            if json.loads(line)["episodes"] <= episodes:
-                kept.append(line + "\n")
-        except (json.JSONDecodeError, KeyError, TypeError):
-            break  # a line cut short when the run was killed: nothing after it counts
-    write_atomically(path, "".join(kept).encode())
+    kept = [row for row in read_metrics_rows(path) if row["episodes"] <= episodes]
+    write_atomically(path, "".join(json.dumps(row) + "\n" for row in kept).encode())
 
 
 def train(
@@ -242,28 +281,55 @@ def train(
     progress: Callable[[Progress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
 ) -> RunResult:
-    """Train ``config.algo`` on the world file's product, writing the run to ``out`` (see the
-    module docstring). ``should_stop`` is polled after every step; when it says so, the run
-    checkpoints and returns with ``stopped`` set."""
+    """Train ``config.algo`` on the world file's product for ``config.episodes`` episodes in
+    all, writing the run to ``out`` (see the module docstring), which it locks meanwhile.
+    ``should_stop`` is polled after every step; when it says so, the run checkpoints and
+    returns with ``stopped`` set."""
     directory = Path(out)
     setting = prepare(Path(world_path), config, spec)
-    saved = _start(directory, setting, setting.world.spec, resume)
-    env_rng, learner_rng = _rngs(config.seed)
-    learner = make_learner(setting, learner_rng)
-    env = VecProduct(setting.tables, learner.num_envs, env_rng)
-    tally = _Tally()
-    if saved is not None:
-        learner.load_state_dict(saved["learner"])
-        env.load_state_dict(saved["env"])
-        tally.restore(saved["tally"])
-        _truncate_metrics(directory / METRICS, tally.episodes)
-    _save_config(directory, setting)
+    if resume:
+        read_config(directory)  # a run directory at all?
+    else:
+        directory.mkdir(parents=True, exist_ok=True)
+    with locked(directory):
+        _start(directory, setting, setting.world.spec, resume)
+        return _train(directory, setting, resume, progress, should_stop)
 
-    def checkpoint() -> None:
-        save_checkpoint(
-            directory / CHECKPOINT,
-            {"learner": learner.state_dict(), "env": env.state_dict(), "tally": tally.state()},
-        )
+
+def _train(
+    directory: Path,
+    setting: Setting,
+    resume: bool,
+    progress: Callable[[Progress], None] | None,
+    should_stop: Callable[[], bool] | None,
+) -> RunResult:
+    config = setting.config
+    env_rng, learner_rng = _rngs(config.seed)
+    where = directory / CONFIG if resume else setting.world_path
+    learner, env = _build(where, setting, learner_rng, env_rng)
+    tally = _Tally()
+    if resume:
+        _restore(directory, learner, env, tally)
+        if tally.episodes >= config.episodes:
+            raise RunError(
+                f"{directory}: the run already has {tally.episodes:,} episodes; --episodes is "
+                f"the run's total, so give more than {tally.episodes:,} to go on"
+            )
+        _truncate_metrics(directory / METRICS, tally.episodes)
+        (directory / SUMMARY).unlink(missing_ok=True)
+    _save_config(directory, setting)
+    saved_at = tally.steps if resume else -1
+
+    def save() -> None:
+        nonlocal saved_at
+        if tally.steps != saved_at:  # else nothing changed since that checkpoint
+            state = {
+                "learner": learner.state_dict(),
+                "env": env.state_dict(),
+                "tally": tally.state_dict(),
+            }
+            checkpoint.save(directory, tally.steps, state, config.keep_checkpoints)
+            saved_at = tally.steps
 
     clock = time.perf_counter() - tally.seconds
     total, stopped, beat = config.episodes, False, 0
@@ -283,7 +349,7 @@ def train(
             if logged or tally.episodes >= total:
                 _log(metrics, tally, learner.epsilon)
             if tally.episodes // config.checkpoint_every > before // config.checkpoint_every:
-                checkpoint()
+                save()
             beat += 1
             if progress is not None and (logged or beat % 50 == 0):
                 progress(_progress(tally, total, learner.epsilon))
@@ -292,7 +358,7 @@ def train(
                 break
     finally:
         metrics.close()
-        checkpoint()
+        save()
     if not stopped:
         _write_json(
             directory / SUMMARY,

@@ -197,7 +197,21 @@ class VecProduct:
         }
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`."""
+        """Restore :meth:`state_dict` (``ValueError`` for states outside this product)."""
+        t = self.tables
+        state = np.asarray(saved["state"])
+        if len(state) and (state.min() < 0 or state.max() >= t.num_states):
+            raise ValueError(f"state: values outside 0..{t.num_states - 1}")
+        if (t.world_state[state] < 0).any():
+            raise ValueError("state: an absorbing product state (episodes restart at once)")
+        bounds = {"mask": t.all_sets + 1, "observation": t.num_observations}
+        for name, top in bounds.items():
+            values = np.asarray(saved[name])
+            if len(values) and (values.min() < 0 or values.max() >= top):
+                raise ValueError(f"{name}: values outside 0..{top - 1}")
+        for name in ("steps", "actions_taken", "rounds"):
+            if (np.asarray(saved[name]) < 0).any():
+                raise ValueError(f"{name}: negative counts")
         for name in ("state", "mask", "steps", "actions_taken", "rounds", "returns", "observation"):
             setattr(self, name, np.array(saved[name]))
         self.rng.bit_generator.state = saved["rng"]
