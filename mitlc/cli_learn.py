@@ -151,13 +151,17 @@ def train_command(
 
         formula = to_text(load_formula(spec, None))
     with _StopFlag() as stop, _progress_display(quiet) as display:
-        task = display.add_task(
-            config.algo, total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
-        )
+        tasks: list[Any] = []  # the bar appears with the first progress, once the run is set up
 
         def show(p: Any) -> None:
+            if not tasks:
+                tasks.append(
+                    display.add_task(
+                        config.algo, total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
+                    )
+                )
             display.update(
-                task,
+                tasks[0],
                 completed=min(p.episodes, p.total),
                 success=p.success_rate,
                 ret=p.mean_return,
