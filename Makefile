@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded lint golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -57,6 +57,11 @@ bench-learn: $(STAMP)
 # Tabular steps per second: the vectorised simulator beside a gymnasium step loop (15 s).
 bench-throughput: $(STAMP)
 	$(BIN)/python bench/learn_throughput.py
+
+# Compile time per state of F[0,k] a for k = 10^3..10^5 (linear), and how soon the runaway
+# F[0,1000] G[0,1000] a is stopped at the default limits (about a minute and a half).
+bench-bounded: $(STAMP)
+	$(BIN)/python bench/bounded_bench.py
 
 # Rewrite golden files from the current output; read `git diff tests/golden` before committing.
 golden: $(STAMP)

@@ -23,10 +23,12 @@ from mitlc.automata.dot import render, to_dot, write_atomically
 from mitlc.automata.hoa import to_hoa, to_hoa_stream
 from mitlc.automata.runs import run_states
 from mitlc.cli_learn import register as register_learning
-from mitlc.errors import MitlcError, SourceLocation, SpecError
-from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_bytes, to_text
+from mitlc.errors import MitlcError
+from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.product.explicit import DEFAULT_MAX_PRODUCT_STATES
+from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_batch_file, read_spec, to_text
 from mitlc.syntax.tree import tree_text
-from mitlc.traces import TraceError, read_trace, trace_columns
+from mitlc.traces import TraceError, read_trace, read_trace_text, trace_columns
 from mitlc.worlds.model import World
 
 if TYPE_CHECKING:
@@ -72,8 +74,8 @@ def _reports_errors(command: Callable[P, R]) -> Callable[P, R]:
             typer.echo(err.render(), err=True)
             raise typer.Exit(1) from None
         except OSError as err:
-            name = err.filename if err.filename is not None else ""
-            typer.echo(f"mitlc: cannot read {name}: {err.strerror}", err=True)
+            name = f"{err.filename}: " if err.filename is not None else ""
+            typer.echo(f"mitlc: {name}{err.strerror or err}", err=True)
             raise typer.Exit(1) from None
 
     return wrapper
@@ -87,8 +89,8 @@ def load_formula(spec: str | None, expr: str | None) -> Formula:
         return parse(expr, "<expr>")
     assert spec is not None
     if spec == "-":
-        return parse_bytes(sys.stdin.buffer.read(), "<stdin>")
-    return parse_bytes(Path(spec).read_bytes(), spec)
+        return parse(read_spec(sys.stdin.buffer, "<stdin>"), "<stdin>")
+    return parse(read_spec(spec), spec)
 
 
 def _json_dumps(data: Any) -> str:
@@ -130,6 +132,22 @@ MaxStatesOpt = Annotated[
         "--max-states", min=1, help="Stop a translation that grows past this many states."
     ),
 ]
+TimeLimitOpt = Annotated[
+    float,
+    typer.Option(
+        "--time-limit",
+        min=0,
+        metavar="SECONDS",
+        help="Stop the command after this many seconds (0: no limit).",
+    ),
+]
+
+
+def _deadline(seconds: float, command: str) -> Deadline:
+    """The time limit of one command (``--time-limit``)."""
+    return Deadline(seconds, f"mitlc {command}", CLI_HOW)
+
+
 OutOpt = Annotated[
     Path | None, typer.Option("--output", "-o", help="Write here (atomically) instead of stdout.")
 ]
@@ -156,14 +174,16 @@ def compile_command(
         ),
     ] = None,
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+    time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Compile a formula into its timed LDGBA (JSON artifact, DOT drawing or HOA)."""
+    deadline = _deadline(time_limit, "compile")
     if batch is not None:
         if spec is not None or expr is not None:
             raise UsageError("mitlc: --batch reads its formulas from FILE; give no SPEC or -e")
-        _emit(_compile_batch(batch, fmt, max_states), output)
+        _emit(_compile_batch(batch, fmt, max_states, deadline), output)
         return
-    compiled = compile_formula(load_formula(spec, expr), max_states=max_states)
+    compiled = compile_formula(load_formula(spec, expr), max_states=max_states, deadline=deadline)
     if fmt is Format.hoa:
         text = to_hoa(compiled.digital)
     elif fmt is Format.dot:
@@ -173,23 +193,11 @@ def compile_command(
     _emit(text, output)
 
 
-def _batch_formulas(path: Path) -> list[Formula]:
-    formulas = []
-    text = path.read_bytes().decode("utf-8", errors="strict")
-    for number, line in enumerate(text.splitlines(), start=1):
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
-        try:
-            formulas.append(parse(line, str(path)))
-        except SpecError as err:
-            loc = err.location
-            moved = SourceLocation(loc.filename, number, loc.column, loc.line_text)
-            raise type(err)(err.message, moved) from None
-    return formulas
-
-
-def _compile_batch(path: Path, fmt: Format, max_states: int) -> str:
-    compiled = [compile_formula(f, max_states=max_states) for f in _batch_formulas(path)]
+def _compile_batch(path: Path, fmt: Format, max_states: int, deadline: Deadline) -> str:
+    compiled = [
+        compile_formula(f, max_states=max_states, deadline=deadline)
+        for f in parse_batch_file(path)
+    ]
     if fmt is Format.hoa:
         return to_hoa_stream(c.digital for c in compiled)
     if fmt is Format.dot:
@@ -209,16 +217,28 @@ def render_command(
         Path, typer.Option("--output", "-o", help="FILE.png, FILE.svg or FILE.dot.")
     ] = Path("automaton.png"),
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+    time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Draw the timed LDGBA of a formula or of a compiled artifact."""
     if source is not None and source.endswith(".json"):
         try:
-            data = json.loads(Path(source).read_text(encoding="utf-8"))
+            data = json.loads(Path(source).read_bytes())
         except json.JSONDecodeError as err:
             raise UsageError(f"{source}:{err.lineno}:{err.colno}: not JSON: {err.msg}") from None
-        timed = from_data(data)
+        except RecursionError:
+            raise UsageError(f"{source}: not a JSON artifact: nested too deeply") from None
+        except ValueError as err:  # not UTF-8, a number of thousands of digits
+            raise UsageError(f"{source}: not a JSON artifact: {err}") from None
+        try:
+            timed = from_data(data)
+        except MitlcError as err:
+            raise UsageError(f"{source}: {err}") from None
     else:
-        timed = compile_formula(load_formula(source, expr), max_states=max_states).timed
+        timed = compile_formula(
+            load_formula(source, expr),
+            max_states=max_states,
+            deadline=_deadline(time_limit, "render"),
+        ).timed
     render(to_dot(timed), output)
     typer.echo(f"wrote {output}", err=True)
 
@@ -232,16 +252,18 @@ def monitor(
     ],
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object per step.")] = False,
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+    time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Print the three-valued verdict (satisfied, violated, pending) after each step of a trace."""
     formula = load_formula(spec, None)
-    text = trace.read_text(encoding="utf-8")
+    text = read_trace_text(trace)
     columns = trace_columns(trace, text)
     missing = sorted(set(atoms(formula)) - columns) if columns is not None else []
     if missing:
         raise TraceError(f"{trace}: no column for the spec's proposition(s) {', '.join(missing)}")
     letters = read_trace(trace, text)
-    digital = compile_formula(formula, max_states=max_states).digital
+    deadline = _deadline(time_limit, "monitor")
+    digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
     states = run_states(digital, letters)
     for step, (letter, state) in enumerate(zip(letters, states[1:], strict=True)):
         verdict = digital.states[state].verdict
@@ -282,6 +304,15 @@ def check_command(
         ),
     ] = True,
     max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+    max_product_states: Annotated[
+        int,
+        typer.Option(
+            "--max-product-states",
+            min=1,
+            help="Refuse a product that may have more states than this (world x automaton).",
+        ),
+    ] = DEFAULT_MAX_PRODUCT_STATES,
+    time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
     from mitlc.check import check
@@ -301,7 +332,8 @@ def check_command(
             raise UsageError(f"{world_file}: the spec {spec}: {err}") from None
     else:
         formula = parse(world.spec, world.spec_source)
-    digital = compile_formula(formula, max_states=max_states).digital
+    deadline = _deadline(time_limit, "check")
+    digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
     if world.is_pomdp:
         typer.echo(
             "note: a POMDP world; pmax and pmax_horizon are the fully observable upper bounds, "
@@ -309,7 +341,7 @@ def check_command(
             "bound)",
             err=True,
         )
-    report = check(world, digital)
+    report = check(world, digital, max_product_states=max_product_states, deadline=deadline)
     if export_drn is not None:
         write_atomically(export_drn, to_drn(report.product).encode("utf-8"))
     if export_dot is not None:
@@ -321,7 +353,7 @@ def check_command(
             raise UsageError(f"mitlc: --export-dot: {err}") from None
         write_atomically(export_dot, dot.encode("utf-8"))
     summary = report.summary()
-    observed, why = _observed(world, report.product) if world.is_pomdp else (None, "")
+    observed, why = _observed(world, report.product, deadline) if world.is_pomdp else (None, "")
     if world.is_pomdp:
         summary["pmax_horizon_observed"] = observed.value if observed is not None else why
     if policy is not None:
@@ -333,7 +365,7 @@ def check_command(
             data = report.policy_data(world)
         write_atomically(policy, (_json_dumps(data) + "\n").encode("utf-8"))
     if world.is_pomdp and pomdp_bounds:
-        summary["bounds"] = _pomdp_bounds(world, digital)
+        summary["bounds"] = _pomdp_bounds(world, digital, max_product_states, deadline)
     if as_json:
         typer.echo(_json_dumps(summary))
         return
@@ -345,13 +377,17 @@ def check_command(
         typer.echo(f"{key:<{width}}  {shown}")
 
 
-def _observed(world: World, product: Product) -> tuple[ObservedBound | None, str]:
-    """The best observation-based policy found and its exact success, or why there is none."""
+def _observed(
+    world: World, product: Product, deadline: Deadline
+) -> tuple[ObservedBound | None, str]:
+    """The best observation-based policy found and its exact success, or why there is none
+    (its time limit included: the exact results above it stand)."""
     from mitlc.check.observed import ObservedBoundError, observed_bound
 
     try:
-        return observed_bound(world, product), ""
-    except ObservedBoundError as err:
+        stage = deadline.at("the observation-based bound")
+        return observed_bound(world, product, deadline=stage), ""
+    except (ObservedBoundError, LimitError) as err:
         return None, f"unavailable: {err}"
 
 
@@ -375,13 +411,18 @@ def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
     }
 
 
-def _pomdp_bounds(world: World, digital: DigitalAutomaton) -> dict[str, object]:
-    """Storm's lower and upper bounds of the POMDP's optimum, or why there are none."""
+def _pomdp_bounds(
+    world: World, digital: DigitalAutomaton, max_product_states: int, deadline: Deadline
+) -> dict[str, object]:
+    """Storm's lower and upper bounds of the POMDP's optimum, or why there are none (its time
+    limit included)."""
     from mitlc.check.pomdp import pomdp_bounds, unavailable_reason
 
     try:
-        found = pomdp_bounds(world, digital)
-    except ValueError as err:
+        found = pomdp_bounds(
+            world, digital, max_product_states=max_product_states, deadline=deadline
+        )
+    except (ValueError, LimitError) as err:
         return {"unavailable": str(err)}
     if found is None:
         return {"unavailable": unavailable_reason() or "stormpy.pomdp is not installed"}

@@ -28,9 +28,25 @@ class SourceLocation:
     line_text: str
 
     def caret(self) -> str:
-        """The source line and a caret under the column, each indented by four spaces."""
-        prefix = "".join(c if c == "\t" else " " for c in self.line_text[: self.column - 1])
-        return f"    {self.line_text}\n    {prefix}^"
+        """The source line and a caret under the column, each indented by four spaces.
+
+        A line longer than :data:`CARET_WIDTH` is cut to that many characters around the
+        column (``...`` marks a cut); characters that do not print (controls, lone surrogates)
+        are shown as U+FFFD, so the caret stays under its character."""
+        line, column = self.line_text, self.column
+        start = 0
+        if len(line) > CARET_WIDTH:
+            start = max(0, min(column - 1 - CARET_WIDTH // 2, len(line) - CARET_WIDTH))
+            line = line[start : start + CARET_WIDTH]
+        shown = "".join(c if c.isprintable() or c == "\t" else "\ufffd" for c in line)
+        before = "..." if start > 0 else ""
+        after = "..." if start + CARET_WIDTH < len(self.line_text) else ""
+        prefix = "".join(c if c == "\t" else " " for c in before + shown[: column - 1 - start])
+        return f"    {before}{shown}{after}\n    {prefix}^"
+
+
+CARET_WIDTH = 100
+"""The most characters of a source line shown above a caret."""
 
 
 def locate(text: str, offset: int, filename: str) -> SourceLocation:

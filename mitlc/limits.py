@@ -8,12 +8,25 @@ to raise it. The values are documented in the README ("Limits").
 
 from __future__ import annotations
 
+import gc
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from mitlc.errors import MitlcError
 
-DEFAULT_TIME_LIMIT = 600.0
-"""Seconds a compile, check or POMDP bound may run before it stops (``--time-limit``)."""
+DEFAULT_TIME_LIMIT = 60.0
+"""Seconds a compile, check or POMDP bound may run before it stops (``--time-limit``).
+
+A minute: the paper's checks take under a second, the whole check of a 100x100 grid about
+20 s and ``F[0,100000] a`` compiles in a few seconds, while a runaway translation (``F[0,1000]
+G[0,1000] a``, about a million states of hundreds of atoms each) holds 3 GB after a minute."""
+
+LIBRARY_HOW = "the time_limit argument (seconds; None for none)"
+"""How a library caller raises a time limit (the command line says ``--time-limit``)."""
+
+CLI_HOW = "--time-limit SECONDS (0 for none)"
+"""How the command line raises a time limit."""
 
 
 class LimitError(MitlcError):
@@ -26,16 +39,17 @@ class Deadline:
 
     ``what`` names the computation and ``how`` says how to raise the limit, e.g.
     ``Deadline(60, "compile", "--time-limit SECONDS (0 for none)")``. :meth:`check` reads the
-    clock only every ``every`` calls, so it is cheap in an inner loop.
+    clock only every ``every`` calls, so it is cheap in an inner loop. ``stage`` (set by the
+    stages a deadline is passed to) says in the message where the time ran out.
     """
 
-    __slots__ = ("_calls", "_end", "every", "how", "seconds", "what")
+    __slots__ = ("_calls", "_end", "every", "how", "seconds", "stage", "what")
 
     def __init__(
         self,
         seconds: float | None,
         what: str,
-        how: str = "--time-limit SECONDS (0 for none)",
+        how: str = CLI_HOW,
         *,
         every: int = 256,
     ) -> None:
@@ -43,11 +57,32 @@ class Deadline:
         self.what, self.how, self.every = what, how, max(1, every)
         self._end = None if self.seconds is None else time.monotonic() + self.seconds
         self._calls = 0
+        self.stage = ""
 
     @classmethod
     def none(cls) -> Deadline:
         """A deadline that never passes."""
         return cls(None, "")
+
+    @classmethod
+    def of(cls, deadline: Deadline | None, time_limit: float | None, what: str) -> Deadline:
+        """``deadline`` when given, else a new one of ``time_limit`` seconds for ``what``
+        (raised with :data:`LIBRARY_HOW`): how a public entry point takes either."""
+        return deadline if deadline is not None else cls(time_limit, what, LIBRARY_HOW)
+
+    @property
+    def unlimited(self) -> bool:
+        """True for a deadline that never passes."""
+        return self._end is None
+
+    def remaining(self) -> float | None:
+        """Seconds left (at least 0), or ``None`` without a limit."""
+        return None if self._end is None else max(0.0, self._end - time.monotonic())
+
+    def at(self, stage: str) -> Deadline:
+        """This deadline, its message now naming ``stage`` (returns ``self``)."""
+        self.stage = stage
+        return self
 
     def check(self) -> None:
         """Raise :class:`LimitError` when the time is up (the clock is read every ``every``
@@ -61,7 +96,106 @@ class Deadline:
     def check_now(self) -> None:
         """Raise :class:`LimitError` when the time is up (reads the clock now)."""
         if self._end is not None and time.monotonic() > self._end:
-            raise LimitError(
-                f"{self.what} stopped at the time limit of {self.seconds:g} s; raise it with "
-                f"{self.how}"
-            )
+            raise self.error()
+
+    def error(self) -> LimitError:
+        """The one-line error of this deadline having passed."""
+        where = f" (during {self.stage})" if self.stage and self.stage != self.what else ""
+        return LimitError(
+            f"{self.what} stopped at the time limit of {self.seconds:g} s{where}; raise it "
+            f"with {self.how}"
+        )
+
+
+@contextmanager
+def collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector for a construction that makes millions of small
+    long-lived objects and no garbage cycles (a translation, a folding): its full collections
+    rescan every object made so far, a third of the time of a 100,000-state compile. Reference
+    counting still frees everything; the collector runs again (as before) on leaving."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+# --- input sizes: specs, world files, traces (checked before or while they are read) --------
+
+MAX_SPEC_CHARS = 50_000
+"""Characters in one spec (a file, ``-e``, standard input, a line of ``compile --batch``).
+
+The paper's specs are under 100 characters. mitlc parses 40,000 to 55,000 characters a second
+of CPU time on this 2-core machine (Lark's LALR parser and the AST transformer), so a spec at
+the limit parses in about a second; the 1 MB spec of issue 11 ran 21 s and 970 MB before it
+failed. A file is read only as far as the bytes that many characters can take, so a larger one
+is refused without being read whole."""
+
+MAX_SPEC_DEPTH = 100
+"""Nesting depth of a spec: operators and parentheses inside one another (``!!a`` is 3 deep,
+``(a)`` 2, ``a & b & c`` 3).
+
+Lark's LALR parser is iterative, but the passes after it (the parse-tree transformer, the
+printer, normalisation, formula progression in the translation) recurse once or more per level:
+with Python's default recursion limit of 1,000 the transformer stops near 490 levels and the
+translation of a chain of ``U`` (5 frames a level) near 196. At 100 levels the deepest pass
+needs about 470 frames, leaving room for the command line and test runners."""
+
+MAX_BOUND = 1_000_000_000_000
+"""The largest interval bound (``F[0,1000000000000] a``); ``inf`` is unbounded.
+
+A bound ``k`` costs about ``k`` states of the digital automaton, so bounds past 10^6 stop at
+``--max-states`` anyway (the reference semantics on lasso words takes any bound); 10^12 keeps
+the sum of the bounds of 100 nested operators far within 64-bit integers. A
+bound with more digits is refused before it is converted (Python's int() refuses more than
+4,300 digits)."""
+
+MAX_BATCH_BYTES = 10_000_000
+"""Bytes in a ``compile --batch`` file (each line also within :data:`MAX_SPEC_CHARS`)."""
+
+MAX_BATCH_FORMULAS = 10_000
+"""Formulas in a ``compile --batch`` file. Parsing and compiling the smallest formula takes
+about half a millisecond, so 10,000 take seconds; the 5 million lines that fit in
+:data:`MAX_BATCH_BYTES` would take 40 minutes. ``bench/formulas.txt`` has 46."""
+
+MAX_WORLD_BYTES = 1_000_000
+"""Bytes in a world file (YAML). The paper's worlds are under 2 KB; listing every cell of the
+largest grid allowed (:data:`MAX_GRID_CELLS`) one per line is not what a world file is for."""
+
+MAX_YAML_DEPTH = 64
+"""Nesting depth of a world file's YAML (collections inside collections). A world needs 4
+(``walls: [[[r, c], N]]``); PyYAML's composer recurses per level and stops with
+``RecursionError`` near 490."""
+
+MAX_YAML_ALIASES = 100
+"""Aliases (``*name``) in a world file. An alias shares its anchor's value, so a few dozen
+aliases of aliases make a "billion laughs" value of 10^9 items that the checks would walk."""
+
+MAX_YAML_NODES = 1_000_000
+"""Values in a world file counted with every alias expanded (a 1 MB file without aliases has
+at most about 500,000): an alias bomb is refused before anything walks it."""
+
+MAX_YAML_INT_DIGITS = 30
+"""Characters in an integer of a world file, before it is converted; after it, an integer must
+lie within 64 bits (``|n| < 2**63``), as the arrays it ends up in."""
+
+MAX_GRID_CELLS = 1_000_000
+"""Cells of a world's grid (rows x cols): a 1000x1000 grid. The product of a 100x100 world
+already has 3 million states and takes 14 s to build (README, ``make bench-check``)."""
+
+MAX_HORIZON = 10_000
+"""The largest ``horizon`` of a world. The paper's horizons are 30 and 40, ``make bench-check``
+uses 401 on a 100x100 grid; ``mitlc check`` keeps a value table per step (``horizon + 1`` of
+them, 8 bytes a product state) and runs a step of value iteration per step, so 10^9 hung."""
+
+MAX_TRACE_BYTES = 16_000_000
+"""Bytes in a trace file for ``mitlc monitor``."""
+
+MAX_TRACE_STEPS = 1_000_000
+"""Steps (rows of a CSV trace, lines of a JSON Lines trace) in a trace file."""
+
+MAX_TRACE_JSON_DEPTH = 8
+"""Nesting depth of one JSON Lines step (a valid step is 1 deep: ``["a"]``, ``{"a": true}``);
+checked before the line is parsed, as Python's JSON parser recurses per level."""

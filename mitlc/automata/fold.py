@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import TypeAlias
+from typing import NamedTuple, TypeAlias
 
 from mitlc.automata.digital import Verdict
 from mitlc.automata.guards import partition
@@ -29,6 +29,7 @@ from mitlc.automata.ldba import StateKind, Translation
 from mitlc.automata.terms import INF, LIT, TermStore
 from mitlc.automata.text import atom_text, form_text, timed_atom_text
 from mitlc.automata.tldgba import Edge, Guard, Jump, Location, Tldgba
+from mitlc.limits import Deadline
 
 TimedAtom: TypeAlias = tuple[str, int, int, int, int, int]
 """``(kind, left, right, base_lo, base_hi, clock)``."""
@@ -39,10 +40,10 @@ Valuation: TypeAlias = tuple[tuple[int, int], ...]
 """``((clock, value), ...)`` for the clocks a location uses, sorted by clock."""
 
 
-@dataclass(frozen=True, slots=True)
-class LocKey:
+class LocKey(NamedTuple):
     """A location: the kind of its states, their forms as templates, and the tokens' seeds;
-    ``state`` names the one digital state of an unfolded location."""
+    ``state`` names the one digital state of an unfolded location (a named tuple: hashed and
+    compared in C)."""
 
     kind: StateKind
     templates: tuple[Template, ...] = ()
@@ -109,6 +110,7 @@ def _timed_atoms(template: Template) -> Iterable[TimedAtom]:
 class _Folder:
     translation: Translation
     unfold: set[LocKey]
+    deadline: Deadline
     untimed: bool = False
     locations: dict[LocKey, int] = field(default_factory=dict)
     covered: list[dict[Valuation, int]] = field(default_factory=list)
@@ -126,12 +128,17 @@ class _Folder:
         if self.untimed:
             return LocKey(key.kind, (), key.seeds, state)
         loc = LocKey(key.kind, templates, key.seeds)
-        return LocKey(key.kind, templates, key.seeds, state) if loc in self.unfold else loc
+        if self.unfold and loc in self.unfold:
+            return LocKey(key.kind, templates, key.seeds, state)
+        return loc
 
     def retemplate(
         self, state: int, source: LocKey | None, values: dict[int, int], step: int
     ) -> tuple[LocKey, dict[int, int], tuple[int, ...]]:
         """The location and valuation of ``state`` reached from ``source`` (None: the start)."""
+        forms = self.translation.keys[state].forms
+        if not forms:  # the sink and the accepting sink: no atoms, no clocks
+            return self.location_key(state, ()), {}, ()
         store = self.store
         with_operands = step == 1
         matcher = _Matcher(store)
@@ -139,7 +146,7 @@ class _Folder:
             for atom in _timed_atoms(template):
                 matcher.add(atom, values, step, with_operands)
         raw: list[list[list[TAtom]]] = []
-        for form in self.translation.keys[state].forms:
+        for form in forms:
             raw.append(
                 [
                     [matcher.timed(a, with_operands)[0] if _is_timed(store, a) else a for a in cube]
@@ -148,51 +155,57 @@ class _Folder:
             )
         if source is None:
             matcher.kept.clear()
+        new_values = dict(matcher.kept)
+        if not matcher.fresh_used:  # every timed atom keeps its clock
+            templates = tuple(frozenset(frozenset(cube) for cube in form) for form in raw)
+            if self.untimed:
+                return self.location_key(state, templates), {}, ()
+            return self.location_key(state, templates), new_values, ()
         fresh = min(c for c in range(len(matcher.kept) + 1) if c not in matcher.kept)
         templates = tuple(
             frozenset(frozenset(_with_clock(a, fresh) for a in cube) for cube in form)
             for form in raw
         )
-        new_values = dict(matcher.kept)
-        resets: tuple[int, ...] = ()
         if self.untimed:
             return self.location_key(state, templates), {}, ()
-        if matcher.fresh_used:
-            new_values[fresh] = 0
-            resets = (fresh,)
-        return self.location_key(state, templates), new_values, resets
+        new_values[fresh] = 0
+        return self.location_key(state, templates), new_values, (fresh,)
 
     def explore(self) -> None:
         automaton = self.translation.automaton
         start_key, start_values, _ = self.retemplate(automaton.initial, None, {}, 0)
-        queue = deque([(automaton.initial, start_key, start_values)])
+        start_valuation = _valuation(start_values)
+        queue = deque([(automaton.initial, start_key, start_values, start_valuation)])
         # A symmetric template (two atoms alike but for their clocks) covers a state under
         # several valuations, so a visit is a (state, location, valuation) triple.
-        seen = {(automaton.initial, start_key, _valuation(start_values))}
+        seen = {(automaton.initial, start_key, start_valuation)}
         jumps: dict[int, list[int]] = {}
         for s, t in automaton.epsilon:
             jumps.setdefault(s, []).append(t)
+        deadline, letters = self.deadline, range(automaton.num_letters)
         while queue:
-            state, key, values = queue.popleft()
+            deadline.check_now()
+            state, key, values, valuation = queue.popleft()
             loc = self._location(key)
-            valuation = _valuation(values)
             self.covered[loc][valuation] = state
             outcomes: list[Outcome] = []
-            for letter in range(automaton.num_letters):
+            for letter in letters:
                 target = automaton.delta[state][letter]
                 t_key, t_values, resets = self.retemplate(target, key, values, 1)
                 outcomes.append((t_key, resets, automaton.marks[state][letter]))
-                if (target, t_key, _valuation(t_values)) not in seen:
-                    seen.add((target, t_key, _valuation(t_values)))
-                    queue.append((target, t_key, t_values))
+                visit = (target, t_key, _valuation(t_values))
+                if visit not in seen:
+                    seen.add(visit)
+                    queue.append((target, t_key, t_values, visit[2]))
             self.behaviour[(loc, valuation)] = outcomes
             jumped = set()
             for target in jumps.get(state, ()):
                 t_key, t_values, resets = self.retemplate(target, key, values, 0)
                 jumped.add((t_key, resets))
-                if (target, t_key, _valuation(t_values)) not in seen:
-                    seen.add((target, t_key, _valuation(t_values)))
-                    queue.append((target, t_key, t_values))
+                visit = (target, t_key, _valuation(t_values))
+                if visit not in seen:
+                    seen.add(visit)
+                    queue.append((target, t_key, t_values, visit[2]))
             self.jumps[(loc, valuation)] = frozenset(jumped)
 
     def _location(self, key: LocKey) -> int:
@@ -241,17 +254,19 @@ MAX_CLOCKS = 3
 """More clocks than this and the digital automaton reads better than its folding."""
 
 
-def fold(translation: Translation) -> Tldgba:
+def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:
     """The T-LDGBA of a translation (see the module docstring).
 
     When folding does not pay (no fewer locations than the digital automaton has states, which
     happens when clocks get permuted, or more than ``MAX_CLOCKS`` clocks), or the jumps cannot
     be made guard-free, the result is the digital automaton itself: one location per state and
-    no clocks.
+    no clocks. ``deadline`` (none by default) stops a folding that runs past its time limit
+    with :class:`mitlc.limits.LimitError`.
     """
+    deadline = Deadline.none() if deadline is None else deadline
     unfold: set[LocKey] = set()
     for _ in range(MAX_REFINEMENTS):
-        folder = _Folder(translation, unfold)
+        folder = _Folder(translation, unfold, deadline)
         try:
             folder.explore()
         except _NotWorthFolding:
@@ -264,12 +279,13 @@ def fold(translation: Translation) -> Tldgba:
                 return folded
             break
         unfold |= conflicts
-    return unfolded(translation)
+    return unfolded(translation, deadline=deadline)
 
 
-def unfolded(translation: Translation) -> Tldgba:
+def unfolded(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:
     """The digital automaton as a T-LDGBA: one location per state, no clocks."""
-    folder = _Folder(translation, set(), untimed=True)
+    deadline = Deadline.none() if deadline is None else deadline
+    folder = _Folder(translation, set(), deadline, untimed=True)
     folder.explore()
     return _build(folder)
 
@@ -281,7 +297,10 @@ def _build(folder: _Folder) -> Tldgba:
     bound = max((atom[4] for atom in timed), default=1)
     num_clocks = 1 + max((atom[5] for atom in timed), default=-1)
     locations, edges, jumps = [], [], []
+    sink_key = next((k for k in folder.locations if k.kind == "sink"), None)
+    sink: Outcome | None = None if sink_key is None else (sink_key, (), 0)
     for key, loc in folder.locations.items():
+        folder.deadline.check()
         clocks = sorted({a[5] for t in key.templates for a in _timed_atoms(t)})
         states = set(folder.covered[loc].values())
         verdicts: set[Verdict] = {automaton.states[s].verdict for s in states}
@@ -293,7 +312,7 @@ def _build(folder: _Folder) -> Tldgba:
             else _key_text(store, key)
         )
         locations.append(Location(loc, f"q{loc}", text, component, verdict, tuple(clocks)))
-        edges.extend(_edges(folder, key, loc, clocks, bound))
+        edges.extend(_edges(folder, loc, clocks, bound, sink))
         some = next(iter(folder.covered[loc]))
         for t_key, resets in sorted(
             folder.jumps[(loc, some)], key=lambda j: folder.locations[j[0]]
@@ -312,18 +331,20 @@ def _build(folder: _Folder) -> Tldgba:
     )
 
 
-def _edges(folder: _Folder, key: LocKey, loc: int, clocks: list[int], bound: int) -> list[Edge]:
-    """The edges of one location: per letter, a partition of its valuations into guards; then
-    letters with the same guard and outcome share an edge."""
+def _edges(
+    folder: _Folder, loc: int, clocks: list[int], bound: int, sink: Outcome | None
+) -> list[Edge]:
+    """The edges of one location: per letter, a partition of its valuations into guards
+    (``sink``: the behaviour past every deadline); then letters with the same guard and outcome
+    share an edge."""
     num_sets = folder.translation.automaton.num_sets
-    sink_key = next((k for k in folder.locations if k.kind == "sink"), None)
-    sink: Outcome | None = None if sink_key is None else (sink_key, (), 0)
     grouped: dict[tuple[Guard, Outcome], set[int]] = {}
+    rows = [
+        (tuple(value for _, value in v), folder.behaviour[(loc, v)]) for v in folder.covered[loc]
+    ]
     for letter in range(folder.translation.automaton.num_letters):
-        points = {
-            tuple(value for _, value in v): folder.behaviour[(loc, v)][letter]
-            for v in folder.covered[loc]
-        }
+        folder.deadline.check()
+        points = {point: outcomes[letter] for point, outcomes in rows}
         for box, outcome in partition(points, len(clocks), bound, sink):
             guard: Guard = tuple(
                 (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)

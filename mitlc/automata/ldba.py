@@ -28,7 +28,7 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal, TypeAlias
+from typing import Literal, NamedTuple, TypeAlias
 
 from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
 from mitlc.automata.digital import DigitalAutomaton, DigitalState, Verdict
@@ -39,6 +39,7 @@ from mitlc.automata.recurrence import Recurrence, split_recurrence
 from mitlc.automata.terms import TermStore
 from mitlc.automata.text import form_text
 from mitlc.errors import MitlcError
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError, collector_paused
 from mitlc.syntax import ast, to_text
 
 MAX_PROPOSITIONS = 16
@@ -46,9 +47,9 @@ MAX_PROPOSITIONS = 16
 StateKind: TypeAlias = Literal["initial", "accepting", "recurrence", "sink", "true"]
 
 
-@dataclass(frozen=True, slots=True)
-class Key:
-    """What a digital state stands for: its kind and its normal forms.
+class Key(NamedTuple):
+    """What a digital state stands for: its kind and its normal forms (a named tuple: hashed
+    and compared in C, as the exploration does for every transition).
 
     ``initial``: ``forms == (obligation,)``. ``accepting``: ``forms == (safety, pending...)``
     with one pending token per ``(k, seed)`` in ``seeds``. ``recurrence``: ``forms == (S, C,
@@ -82,6 +83,10 @@ class TranslationError(MitlcError):
     """A formula the translation refuses: too many propositions or states."""
 
 
+class StateLimitError(TranslationError, LimitError):
+    """The translation stopped at its state limit (``max_states``, ``--max-states``)."""
+
+
 @dataclass(slots=True)
 class _Explored:
     """The states found so far and their transitions, in discovery order."""
@@ -96,9 +101,10 @@ class _Explored:
         found = self.index.get(key)
         if found is None:
             if len(self.keys) >= limit:
-                raise TranslationError(
-                    f"the automaton grows past --max-states {limit}; raise the limit or "
-                    "simplify the formula (smaller bounds, fewer nested operators)"
+                raise StateLimitError(
+                    f"the automaton grows past --max-states {limit}; raise the state limit "
+                    "with a larger --max-states (max_states from Python) or simplify the "
+                    "formula (smaller bounds, fewer nested operators)"
                 )
             found = len(self.keys)
             self.keys.append(key)
@@ -116,13 +122,36 @@ class Translation:
     """``keys[s]``: the normal forms behind digital state ``s``."""
 
 
-def translate(formula: ast.Formula, *, max_states: int = 1_000_000) -> DigitalAutomaton:
-    """The digital LDGBA of ``formula`` (see the module docstring)."""
-    return translate_terms(formula, max_states=max_states).automaton
+def translate(
+    formula: ast.Formula,
+    *,
+    max_states: int = 1_000_000,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> DigitalAutomaton:
+    """The digital LDGBA of ``formula`` (see the module docstring).
+
+    Stops with :class:`StateLimitError` past ``max_states`` states and with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given (a clock shared with the caller's other stages)."""
+    clock = Deadline.of(deadline, time_limit, "compile")
+    return translate_terms(formula, max_states=max_states, deadline=clock).automaton
 
 
-def translate_terms(formula: ast.Formula, *, max_states: int = 1_000_000) -> Translation:
+def translate_terms(
+    formula: ast.Formula,
+    *,
+    max_states: int = 1_000_000,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> Translation:
     """:func:`translate`, keeping the term store and each state's normal form."""
+    clock = Deadline.of(deadline, time_limit, "compile").at("translation")
+    with collector_paused():
+        return _translate_terms(formula, max_states, clock)
+
+
+def _translate_terms(formula: ast.Formula, max_states: int, deadline: Deadline) -> Translation:
     propositions = ast.atoms(formula)
     if len(propositions) > MAX_PROPOSITIONS:
         raise TranslationError(
@@ -136,7 +165,9 @@ def translate_terms(formula: ast.Formula, *, max_states: int = 1_000_000) -> Tra
     recurrence = split_recurrence(store, root) if mu and nu else None
     if recurrence is not None:
         mu, num_sets = (), recurrence.num_sets
-    builder = _Builder(store, Progression(store), mu if nu else (), nu, num_sets, max_states)
+    builder = _Builder(
+        store, Progression(store), mu if nu else (), nu, num_sets, max_states, deadline
+    )
     builder.recurrence = recurrence
     explored = builder.explore(root)
     return builder.finish(explored, to_text(formula))
@@ -150,6 +181,7 @@ class _Builder:
     nu: tuple[int, ...]
     num_sets: int
     max_states: int
+    deadline: Deadline
     substitution: Substitution = field(init=False)
     recurrence: Recurrence | None = None
 
@@ -170,19 +202,54 @@ class _Builder:
             start = TRUE
         elif root == self.store.false:
             start = SINK
-        explored.id(start, self.max_states)
+        limit, deadline, letters = self.max_states, self.deadline, self.letters
+        keys, index = explored.keys, explored.index
+        explored.id(start, limit)
         position = 0
-        while position < len(explored.keys):
-            key = explored.keys[position]
-            row = [self._successor(key, letter) for letter in self.letters]
-            explored.delta.append([explored.id(k, self.max_states) for k, _ in row])
-            explored.marks.append([m for _, m in row])
+        while position < len(keys):
+            deadline.check_now()
+            key = keys[position]
+            targets, marks = [], []
+            if key.kind == "initial":  # the common case: no marks, one target per obligation
+                targets = self._initial_row(explored, key.forms[0])
+                marks = [0] * len(letters)
+            else:
+                for letter in letters:
+                    successor, mark = self._successor(key, letter)
+                    found = index.get(successor)
+                    targets.append(explored.id(successor, limit) if found is None else found)
+                    marks.append(mark)
+            explored.delta.append(targets)
+            explored.marks.append(marks)
             if key.kind == "initial" and self.mu:
                 for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu):
-                    target = explored.id(Key.of_guess(guess), self.max_states)
+                    target = explored.id(Key.of_guess(guess), limit)
                     explored.epsilon.append((position, target))
             position += 1
         return explored
+
+    def _initial_row(self, explored: _Explored, form: int) -> list[int]:
+        """The successors of the initial-component state of ``form``, letter by letter: what
+        :meth:`_successor` gives, each obligation looked up once."""
+        step, false, true = self.progression.step, self.store.false, self.store.true
+        index, row = explored.index, []
+        made: dict[int, int] = {}
+        for letter in self.letters:
+            after = step(form, letter)
+            found = made.get(after)
+            if found is None:
+                if after == false:
+                    successor = SINK
+                elif after == true:
+                    successor = TRUE
+                else:
+                    successor = Key("initial", (after,))
+                found = index.get(successor)
+                if found is None:
+                    found = explored.id(successor, self.max_states)
+                made[after] = found
+            row.append(found)
+        return row
 
     def _successor(self, key: Key, letter: int) -> tuple[Key, int]:
         store, all_sets = self.store, (1 << self.num_sets) - 1
@@ -222,16 +289,16 @@ class _Builder:
         if len(order) < len(keys) or not live:
             sink = len(order)
 
-        def target(old: int) -> int:
-            mapped = new_id.get(old)
-            if mapped is None or old not in live:
-                assert sink is not None
-                return sink
-            return mapped
-
-        delta = [tuple(target(t) for t in explored.delta[old]) for old in order]
+        # remap[old]: the new id of a live state, the sink's of any other
+        remap = [-1 if sink is None else sink] * len(keys)
+        for old, new in new_id.items():
+            remap[old] = new
+        delta = [tuple([remap[t] for t in explored.delta[old]]) for old in order]
         marks = [tuple(explored.marks[old]) for old in order]
-        states = [self._state(keys[old]) for old in order]
+        states = []
+        for old in order:
+            self.deadline.check()
+            states.append(self._state(keys[old]))
         new_keys = [keys[old] for old in order]
         if sink is not None:
             new_keys.append(SINK)

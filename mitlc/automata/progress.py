@@ -30,7 +30,8 @@ class Progression:
 
     def step(self, form: int, letter: int) -> int:
         """The progression of ``form`` through ``letter`` (bit ``i``: proposition ``i`` holds)."""
-        letter &= self.reads(form)
+        reads = self._reads.get(form)
+        letter &= self.reads(form) if reads is None else reads
         key = (form, letter)
         found = self._form_cache.get(key)
         if found is None:

@@ -25,6 +25,10 @@ from typing import TypeAlias
 INF = -1
 """The upper bound of an unbounded interval, in atoms."""
 
+SEQUENTIAL_CUBES = 16
+"""Forms of at most this many cubes are substituted one cube at a time (see
+:meth:`TermStore.substitute`)."""
+
 # Atom kinds.
 LIT, EVENTUALLY, ALWAYS, UNTIL, RELEASE = "lit", "F", "G", "U", "R"
 
@@ -49,6 +53,8 @@ class TermStore:
         self.true = self.form(frozenset({frozenset()}))
         self._and_cache: dict[tuple[int, int], int] = {}
         self._or_cache: dict[tuple[int, int], int] = {}
+        self.texts: dict[int, tuple[str, int]] = {}
+        """Memo of :func:`mitlc.automata.text.form_text`: a form's text and printer level."""
 
     # --- interning ------------------------------------------------------------------------------
 
@@ -180,9 +186,40 @@ class TermStore:
         return found
 
     def substitute(self, form: int, replace: Callable[[int], int]) -> int:
-        """``form`` with every atom replaced by the form ``replace(atom)``."""
+        """``form`` with every atom replaced by the form ``replace(atom)``.
+
+        The disjunction of the cubes' conjunctions is the set of minimal cubes of their union.
+        Past :data:`SEQUENTIAL_CUBES` cubes it is taken at once, in time linear in the cubes (a
+        state of ``n`` pending windows has ``n`` cubes); below, by :meth:`or_` one conjunction at
+        a time, as before. The two give the same form, but the order in which the new form's
+        cubes are iterated (so the order later atoms are made in, and the order of the atoms of
+        a printed obligation) depends on how it was built: the small forms of every shipped and
+        tested formula are built as they always were, so their output is unchanged."""
+        cubes = self.forms[form]
+        if len(cubes) == 1:
+            (cube,) = cubes
+            if len(cube) == 1:  # a single atom: what the loop below gives, without the loop
+                (only,) = cube
+                return replace(only)
+        if len(cubes) <= SEQUENTIAL_CUBES:
+            return self._substitute_sequential(cubes, replace)
+        found: set[Cube] = set()
+        for cube in cubes:
+            conjunction = self.true
+            for atom in cube:
+                conjunction = self.and_(conjunction, replace(atom))
+                if conjunction == self.false:
+                    break
+            if conjunction == self.true:
+                return self.true
+            found |= self.forms[conjunction]
+        if len(found) == 1:
+            return self.form(frozenset(found))
+        return self.form(self._absorb(found))
+
+    def _substitute_sequential(self, cubes: Form, replace: Callable[[int], int]) -> int:
         result = self.false
-        for cube in self.forms[form]:
+        for cube in cubes:
             conjunction = self.true
             for atom in cube:
                 conjunction = self.and_(conjunction, replace(atom))
@@ -238,11 +275,18 @@ class TermStore:
 
     @staticmethod
     def _absorb(cubes: Iterable[Cube]) -> Form:
-        """Drop every cube that contains another cube (``x | x & y`` is ``x``)."""
+        """Drop every cube that contains another cube (``x | x & y`` is ``x``).
+
+        Only a shorter cube can be contained in a cube (two distinct cubes of one length never
+        are), so each cube is compared with the kept cubes shorter than it: a disjunction of
+        ``n`` single atoms costs ``n``, not ``n * n``."""
         ordered = sorted(set(cubes), key=len)
         kept: list[Cube] = []
+        length, shorter = -1, 0  # kept[:shorter]: the kept cubes shorter than the current one
         for cube in ordered:
-            if not any(small <= cube for small in kept):
+            if len(cube) != length:
+                length, shorter = len(cube), len(kept)
+            if not any(kept[i] <= cube for i in range(shorter)):
                 kept.append(cube)
         return frozenset(kept)
 

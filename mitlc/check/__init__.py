@@ -8,7 +8,8 @@ from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.solve import Solution, pmax, pmax_horizon
-from mitlc.product.explicit import Product, build_product
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.product.explicit import DEFAULT_MAX_PRODUCT_STATES, Product, build_product
 from mitlc.worlds.model import World
 
 
@@ -72,12 +73,29 @@ class CheckReport:
         return rows
 
 
-def check(world: World, automaton: DigitalAutomaton) -> CheckReport:
-    """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy."""
+def check(
+    world: World,
+    automaton: DigitalAutomaton,
+    *,
+    max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> CheckReport:
+    """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy.
+
+    Refuses a product past ``max_product_states``
+    (:class:`mitlc.product.explicit.ProductSizeError`); stops with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds for all three stages together
+    (``None``: no limit), or at ``deadline`` when one is given."""
     start = time.perf_counter()
-    product = build_product(world, automaton)
-    solution = pmax(product)
-    within, _ = pmax_horizon(product, world.horizon, keep_history=False)
+    clock = Deadline.of(deadline, time_limit, "check")
+    product = build_product(
+        world, automaton, max_product_states=max_product_states, deadline=clock
+    )
+    solution = pmax(product, deadline=clock.at("pmax"))
+    within, _ = pmax_horizon(
+        product, world.horizon, keep_history=False, deadline=clock.at("pmax_horizon")
+    )
     return CheckReport(
         world=world.name,
         spec=automaton.formula,

@@ -16,17 +16,20 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from mitlc.check.topo import spans, state_graph
+from mitlc.limits import Deadline
 from mitlc.product.explicit import VIOLATED, Product
 from mitlc.worlds.model import BoolArray, IntArray
 
 
 def maximal_end_components(
-    product: Product, graph: csr_matrix | None = None
+    product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
 ) -> tuple[IntArray, IntArray]:
     """``(component, kept)``: each state's MEC label (``-1`` for none) and a mask of the choices
     that stay inside their MEC (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the
     caller has it). The first round splits the whole state graph; later rounds only the graph
-    of the choices kept so far, which in a nearly acyclic product is small."""
+    of the choices kept so far, which in a nearly acyclic product is small. ``deadline`` (none
+    by default) is read every round."""
+    clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
     t = product.transitions
     sources = np.repeat(np.arange(n), np.diff(product.choice_ptr))
@@ -41,6 +44,7 @@ def maximal_end_components(
     alive[sources[kept]] = True
     chosen = np.flatnonzero(kept)
     while True:
+        clock.check_now()
         edges = spans(t.indptr, chosen)
         local = np.repeat(np.arange(len(chosen)), per_choice[chosen])
         heads, tails = np.repeat(sources[chosen], per_choice[chosen]), t.targets[edges]
@@ -58,9 +62,11 @@ def maximal_end_components(
         chosen, alive = chosen[stay], new_alive
 
 
-def accepting_states(product: Product, graph: csr_matrix | None = None) -> BoolArray:
+def accepting_states(
+    product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
+) -> BoolArray:
     """The states that lie in an accepting maximal end component (a boolean mask)."""
-    labels, kept = maximal_end_components(product, graph)
+    labels, kept = maximal_end_components(product, graph, deadline=deadline)
     sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
     all_sets = (1 << product.num_sets) - 1
     chosen = np.flatnonzero(kept)

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.sparse import csr_matrix, vstack
 
 from mitlc.check.topo import spans
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
@@ -132,12 +133,17 @@ def observed_bound(
     max_sweeps: int = 30,
     tolerance: float = 1e-9,
     max_cells: int = MAX_CELLS,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
 ) -> ObservedBound:
     """The best observation-based policy found and its exact success probability within
     ``horizon`` (default: the world's); see the module docstring. The sweeps stop when one
     gains at most ``tolerance``, or after ``max_sweeps``. Raises :class:`ObservedBoundError` for
     a world without observations, a product with epsilon jumps (a choice the table does not
-    express) or more than ``max_cells`` steps x (observation, state) pairs."""
+    express) or more than ``max_cells`` steps x (observation, state) pairs. Stops with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given (read at every step of every pass)."""
+    clock = Deadline.of(deadline, time_limit, "the observation-based bound")
     steps = world.horizon if horizon is None else horizon
     model = _model(world, product)
     observing = model.observing
@@ -151,13 +157,14 @@ def observed_bound(
     # The fully observable optimum's state distribution weighs the first sweep.
     states = np.unique(observing.pair_state)
     identity = _Observing.of(states, np.ones(len(states)), states, model.size)
-    full = _backward(model, identity, [np.ones_like(start)] * steps, None)[1]
-    weights = _forward(model, identity, full, start)
+    full = _backward(model, identity, [np.ones_like(start)] * steps, None, clock)[1]
+    weights = _forward(model, identity, full, start, clock)
     policy: IntArray | None = None
     values: list[float] = []
     for _ in range(max_sweeps):
-        value, policy = _backward(model, observing, weights, policy)
-        weights = _forward(model, observing, policy, start)  # the next sweep's, or `reached`
+        value, policy = _backward(model, observing, weights, policy, clock)
+        # the next sweep's weights, or the last policy's `reached`
+        weights = _forward(model, observing, policy, start, clock)
         if values and value <= values[-1] + tolerance:
             values.append(max(value, values[-1]))
             break
@@ -243,13 +250,14 @@ def _pairs(
 
 
 def _forward(
-    model: _Model, observing: _Observing, policy: IntArray, start: FloatArray
+    model: _Model, observing: _Observing, policy: IntArray, start: FloatArray, deadline: Deadline
 ) -> list[FloatArray]:
     """The distribution over states at each step under ``policy`` (mass that reaches an
     absorbing state stops there)."""
     size, pairs = model.size, observing
     found, d = [], start.copy()
     for t in range(len(policy)):
+        deadline.check_now()
         found.append(d)
         chosen = policy[t][pairs.pair_key]
         w = d[pairs.pair_state] * pairs.pair_prob
@@ -259,7 +267,11 @@ def _forward(
 
 
 def _backward(
-    model: _Model, observing: _Observing, weights: list[FloatArray], current: IntArray | None
+    model: _Model,
+    observing: _Observing,
+    weights: list[FloatArray],
+    current: IntArray | None,
+    deadline: Deadline,
 ) -> tuple[float, IntArray]:
     """One backward pass: the improved policy, step by step from the last, and its exact value
     from the initial state (``weights[t]``: the distribution at step ``t`` that weighs the
@@ -269,6 +281,7 @@ def _backward(
     values = model.terminal.copy()
     keys = np.arange(count)
     for t in range(steps - 1, -1, -1):
+        deadline.check_now()
         q = np.asarray(model.moves @ values).reshape(model.actions, model.size)
         mass = weights[t]
         score = np.asarray(pairs.key_matrix @ (q * mass).T)  # (keys, actions)

@@ -27,10 +27,16 @@ With ``horizon_success`` a step counter ``t`` (world actions count, epsilon jump
 joins the state and the observation (the agent can count steps), and the probability is of
 reaching ``satisfied`` within ``world.horizon`` steps (for zero acceptance sets: of not being
 violated within the horizon).
+
+Time: the product, ``pmax`` and the POMDP's text read a :class:`mitlc.limits.Deadline`; Storm's
+unfolding gets the time left as its ``max_exploration_time`` (when that is shorter than the
+one asked for); Storm's discretization has no time limit of its own, so it starts only while
+time is left and then runs to its end (its size is bounded by ``resolution``).
 """
 
 from __future__ import annotations
 
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -39,7 +45,14 @@ from typing import Any
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
 from mitlc.check.solve import pmax
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.product.explicit import (
+    DEFAULT_MAX_PRODUCT_STATES,
+    SATISFIED,
+    VIOLATED,
+    Product,
+    build_product,
+)
 from mitlc.worlds.model import World
 
 TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
@@ -58,11 +71,15 @@ def unavailable_reason() -> str | None:
     return None
 
 
-def to_pomdp_drn(world: World, product: Product, horizon: int | None = None) -> str:
+def to_pomdp_drn(
+    world: World, product: Product, horizon: int | None = None, *, deadline: Deadline | None = None
+) -> str:
     """The DRN text of the product POMDP (see the module docstring), with labels ``init``,
     ``satisfied`` and ``violated``. With ``horizon``, states carry a step counter up to it;
     pending states at the horizon move to ``satisfied`` (zero acceptance sets: not violated
-    within the horizon is success) or to an absorbing ``timeout`` state."""
+    within the horizon is success) or to an absorbing ``timeout`` state. ``deadline`` (none by
+    default) is read at every state written."""
+    clock = Deadline.none() if deadline is None else deadline
     if world.observations is None:
         raise ValueError(f"world {world.name!r} is not a POMDP")
     obs = world.observations.model
@@ -105,6 +122,7 @@ def to_pomdp_drn(world: World, product: Product, horizon: int | None = None) -> 
     init_choice = successors(product.initial, 0)
     index = 0
     while index < len(order):
+        clock.check()
         key = order[index]
         index += 1
         x, o, step = key
@@ -194,6 +212,9 @@ def pomdp_bounds(
     resolution: int = 2,
     discretize: bool = True,
     precision: str = "1/10000000000",
+    max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
 ) -> dict[str, Any] | None:
     """Lower and upper bounds on the maximal probability, over observation-based policies, of
     the task (see the module docstring), or ``None`` when Storm's POMDP analysis is
@@ -204,7 +225,9 @@ def pomdp_bounds(
     completed, the POMDP's size, the seconds spent, and ``method``. Exploration limits:
     ``max_exploration_size`` beliefs and ``max_exploration_time`` seconds for the unfolding;
     ``resolution`` for the discretization (skipped when not ``discretize``). Storm solves the
-    belief MDPs soundly to the absolute ``precision`` (a rational's text).
+    belief MDPs soundly to the absolute ``precision`` (a rational's text). Stops with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given (see the module docstring for Storm's part).
     """
     if unavailable_reason() is not None:
         return None
@@ -213,8 +236,11 @@ def pomdp_bounds(
     import stormpy.pomdp
 
     start = time.perf_counter()
-    product = build_product(world, automaton)
-    full = float(pmax(product).values[product.initial])
+    clock = Deadline.of(deadline, time_limit, "the POMDP bounds")
+    product = build_product(
+        world, automaton, max_product_states=max_product_states, deadline=clock
+    )
+    full = float(pmax(product, deadline=clock.at("pmax")).values[product.initial])
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp)
         residual = _reduction_residual(product, directory)
@@ -223,7 +249,12 @@ def pomdp_bounds(
                 "the task is not reachability of 'satisfied' on this product: a policy meets "
                 f"the acceptance condition without reaching it w.p. {residual}"
             )
-        text = to_pomdp_drn(world, product, world.horizon if horizon_success else None)
+        text = to_pomdp_drn(
+            world,
+            product,
+            world.horizon if horizon_success else None,
+            deadline=clock.at("the POMDP's text"),
+        )
         path = directory / "pomdp.drn"
         path.write_text(text, encoding="utf-8")
         options = stormpy.io.DirectEncodingParserOptions()
@@ -235,13 +266,14 @@ def pomdp_bounds(
         model,
         prop,
         max_exploration_size=max_exploration_size,
-        max_exploration_time=max_exploration_time,
+        max_exploration_time=_exploration_time(max_exploration_time, clock.at("Storm's unfolding")),
         environment=_environment(precision),
     )
     unfolded = time.perf_counter()
     upper_raw: float | None = None
     upper_complete = False
     if discretize:
+        clock.at("Storm's discretization").check_now()
         upper_result = stormpy.pomdp.verify_with_belief_discretization(
             model, prop, resolution, environment=_environment(precision)
         )
@@ -267,3 +299,14 @@ def pomdp_bounds(
         "method": "stormpy.pomdp.verify_with_belief_unfolding (lower), "
         f"verify_with_belief_discretization resolution {resolution} (upper)",
     }
+
+
+def _exploration_time(asked: int | None, deadline: Deadline) -> int | None:
+    """Storm's ``max_exploration_time``: the seconds ``asked`` for, or the whole seconds left
+    before ``deadline`` when fewer (at least 1; the deadline has passed when none is left)."""
+    deadline.check_now()
+    left = deadline.remaining()
+    if left is None:
+        return asked
+    seconds = max(1, math.floor(left))
+    return seconds if asked is None else min(asked, seconds)

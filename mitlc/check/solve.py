@@ -10,6 +10,11 @@
 * ``pmax_horizon``: the maximal probability of the episode's success within ``H`` steps (never
   violated, and satisfied or a round of all acceptance sets completed), by backward induction
   over the product and the set of acceptance sets seen so far. Epsilon jumps take no step.
+
+Every loop whose length depends on the input (value iteration, policy iteration, the steps of
+the horizon, the layers of the topological solve) reads a :class:`mitlc.limits.Deadline`, so a
+solve stops with :class:`mitlc.limits.LimitError` at its time limit; only a single sparse LU
+solve (:func:`_solve_chain`'s fallback) runs to its end once started.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from mitlc.check.topo import (
     state_graph,
     topological_values,
 )
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -91,7 +97,12 @@ def _backward_search(
 
 
 def _evaluate(
-    product: Product, matrix: csr_matrix, policy: IntArray, target: BoolArray, zero: BoolArray
+    product: Product,
+    matrix: csr_matrix,
+    policy: IntArray,
+    target: BoolArray,
+    zero: BoolArray,
+    deadline: Deadline,
 ) -> FloatArray:
     """The exact reachability probabilities of ``target`` under ``policy``."""
     free = ~target & ~zero
@@ -101,7 +112,7 @@ def _evaluate(
     if len(index):
         sub = chain[index][:, index].tocsr()
         rhs = np.asarray(chain[index][:, np.flatnonzero(target)].sum(axis=1)).ravel()
-        values[index] = _solve_chain(sub, rhs)
+        values[index] = _solve_chain(sub, rhs, deadline)
     return values
 
 
@@ -111,11 +122,12 @@ time-bounded tasks are nearly acyclic, so it converges in about as many sweeps a
 sparse LU is the fallback when it does not converge."""
 
 
-def _solve_chain(sub: csr_matrix, rhs: FloatArray) -> FloatArray:
+def _solve_chain(sub: csr_matrix, rhs: FloatArray, deadline: Deadline) -> FloatArray:
     """The solution ``v`` of ``v = sub v + rhs`` (the chain's reachability probabilities)."""
     if len(rhs) > DIRECT_LIMIT:
         v = rhs.copy()
         for _ in range(20_000):
+            deadline.check_now()
             new = sub @ v + rhs
             if np.max(np.abs(new - v)) < 1e-15:
                 return np.asarray(new)
@@ -124,16 +136,27 @@ def _solve_chain(sub: csr_matrix, rhs: FloatArray) -> FloatArray:
     return np.asarray(spsolve(identity_minus, rhs))
 
 
-def max_reach(product: Product, target: BoolArray, graph: csr_matrix | None = None) -> Solution:
+def max_reach(
+    product: Product,
+    target: BoolArray,
+    graph: csr_matrix | None = None,
+    *,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> Solution:
     """The maximal probability of reaching ``target`` from every state, and a policy for it
-    (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the caller has it)."""
+    (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the caller has it). Stops with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given."""
+    clock = Deadline.of(deadline, time_limit, "pmax")
     matrix = _choice_matrix(product)
     into = matrix.tocsc()
     graph = state_graph(product) if graph is None else graph
     zero = ~backward_reachable(graph, target)
-    values = topological_values(product, matrix, target, zero, graph)
+    values = topological_values(product, matrix, target, zero, graph, deadline=clock)
     sweeps = 0
     for sweeps in range(1, 100_001):  # noqa: B007 - the count says whether the seed was exact
+        clock.check_now()
         q_values = matrix @ values
         new = np.maximum.reduceat(q_values, product.choice_ptr[:-1])
         new = np.where(target, 1.0, np.where(zero, 0.0, new))
@@ -150,7 +173,8 @@ def max_reach(product: Product, target: BoolArray, graph: csr_matrix | None = No
         # policy climbs to the target along optimal choices: nothing for policy iteration to do.
         return Solution(np.clip(values, 0.0, 1.0), policy)
     for _ in range(100):
-        values = _evaluate(product, matrix, policy, target, zero)
+        clock.check_now()
+        values = _evaluate(product, matrix, policy, target, zero, clock)
         q_values = matrix @ values
         best, choice = _best(product, q_values)
         improve = (best > values + 1e-9) & ~target & ~zero
@@ -160,10 +184,19 @@ def max_reach(product: Product, target: BoolArray, graph: csr_matrix | None = No
     return Solution(np.clip(values, 0.0, 1.0), policy)
 
 
-def pmax(product: Product) -> Solution:
-    """The maximal probability of satisfying the formula (accepting MECs, then reachability)."""
+def pmax(
+    product: Product,
+    *,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> Solution:
+    """The maximal probability of satisfying the formula (accepting MECs, then reachability).
+    Stops with :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no
+    limit), or at ``deadline`` when one is given."""
+    clock = Deadline.of(deadline, time_limit, "pmax")
     graph = state_graph(product)
-    return max_reach(product, accepting_states(product, graph), graph)
+    accepting = accepting_states(product, graph, deadline=clock)
+    return max_reach(product, accepting, graph, deadline=clock)
 
 
 FULL_STEP = 0.25
@@ -172,7 +205,12 @@ share of the states must be recomputed."""
 
 
 def pmax_horizon(
-    product: Product, horizon: int, *, keep_history: bool = True
+    product: Product,
+    horizon: int,
+    *,
+    keep_history: bool = True,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
 ) -> tuple[float, list[FloatArray]]:
     """The maximal probability of success within ``horizon`` steps from the initial state, and
     the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen), all
@@ -183,7 +221,14 @@ def pmax_horizon(
     the step before (in a product of a time-bounded task most values settle once the clock
     has run out, so a step touches a few percent of the states); the others keep their values,
     which is exactly what a full step would give them. The matrix of a mask reads the values
-    of the mask ``mask | marks[c]`` that choice ``c`` moves to from the whole table at once."""
+    of the mask ``mask | marks[c]`` that choice ``c`` moves to from the whole table at once.
+
+    Once a step changes nothing the table is a fixpoint and the steps left are not computed
+    (with ``keep_history`` they are copies of it), so a horizon far past the product's depth
+    costs no more than the depth. Otherwise a step costs at least the states it recomputes and
+    a horizon of a billion steps is stopped by the time limit: :class:`mitlc.limits.LimitError`
+    after ``time_limit`` seconds (``None``: no limit), or at ``deadline`` when one is given."""
+    clock = Deadline.of(deadline, time_limit, "pmax_horizon")
     masks = 1 << product.num_sets
     n = product.num_states
     t = product.transitions
@@ -211,7 +256,8 @@ def pmax_horizon(
     history = [table.copy()]
     slot = np.zeros(n, dtype=np.int64)
     dirty = np.arange(n)
-    for _ in range(horizon):
+    for step in range(horizon):
+        clock.check_now()
         flat = table.ravel()
         if len(dirty) > FULL_STEP * n:
             dirty = np.arange(n)
@@ -234,6 +280,10 @@ def pmax_horizon(
         dirty = _distinct(sources[gather(into_ptr, into.indices, changed)], slot)
         if keep_history:
             history.append(table.copy())
+        if not len(changed):  # a fixpoint: every later step gives this table again
+            if keep_history:
+                history.extend(table.copy() for _ in range(horizon - step - 1))
+            break
     if not keep_history:
         history = [table]
     return float(table[0, product.initial]), history

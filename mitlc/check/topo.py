@@ -18,6 +18,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
+from mitlc.limits import Deadline
 from mitlc.product.explicit import Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -104,9 +105,13 @@ def topological_values(
     target: BoolArray,
     zero: BoolArray,
     graph: csr_matrix,
+    *,
+    deadline: Deadline | None = None,
 ) -> FloatArray:
     """The maximal probabilities of reaching ``target`` (``zero``: states that cannot);
-    ``graph`` is the product's :func:`state_graph`."""
+    ``graph`` is the product's :func:`state_graph`. ``deadline`` (none by default) is read at
+    every layer and every sweep of a larger component's value iteration."""
+    clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
     count, labels = connected_components(graph, directed=True, connection="strong")
     if count == n:  # every component a single state: the state graph is the condensation
@@ -124,7 +129,7 @@ def topological_values(
         order = np.argsort(level[component], kind="stable")
         ptr = np.searchsorted(level[component][order], np.arange(len(level_ptr)))
         size = np.bincount(component, minlength=count)[component]
-    return _solve_layers(product, matrix, order, ptr, size, target, zero)
+    return _solve_layers(product, matrix, order, ptr, size, target, zero, clock)
 
 
 def _solve_layers(
@@ -135,6 +140,7 @@ def _solve_layers(
     size: IntArray,
     target: BoolArray,
     zero: BoolArray,
+    deadline: Deadline,
 ) -> FloatArray:
     """The values, layer by layer from the sinks; ``order[ptr[d]:ptr[d+1]]`` are layer ``d``'s
     states and ``size`` each state's component size."""
@@ -164,6 +170,7 @@ def _solve_layers(
     fixed = target | zero
     single = size == 1
     for depth in range(len(ptr) - 1):
+        deadline.check_now()
         lo, hi = int(ptr[depth]), int(ptr[depth + 1])
         states = order[lo:hi]
         a, b = int(state_start[lo]), int(state_start[hi])
@@ -177,12 +184,19 @@ def _solve_layers(
         else:
             alone = single[states] & ~fixed[states]
             values[states[alone]] = np.maximum(best[alone], 0.0)
-            _solve_components(matrix, states[~single[states]], product, values, fixed)
+            _solve_components(
+                matrix, states[~single[states]], product, values, fixed, deadline
+            )
     return values
 
 
 def _solve_components(
-    matrix: csr_matrix, states: IntArray, product: Product, values: FloatArray, fixed: BoolArray
+    matrix: csr_matrix,
+    states: IntArray,
+    product: Product,
+    values: FloatArray,
+    fixed: BoolArray,
+    deadline: Deadline,
 ) -> None:
     """Value iteration from below on one layer's larger components (their exits fixed)."""
     ptr = product.choice_ptr
@@ -191,6 +205,7 @@ def _solve_components(
     rows = matrix[choices]
     members = ~fixed[states]
     for _ in range(1_000_000):
+        deadline.check_now()
         new = np.maximum(np.maximum.reduceat(rows @ values, local), 0.0)[members]
         change = np.max(np.abs(new - values[states[members]])) if members.any() else 0.0
         values[states[members]] = new

@@ -8,6 +8,14 @@ moves to ``(s, t)`` with probability 1 and no marks. Every product state whose a
 is violated (satisfied) is merged into one absorbing ``violated`` (``satisfied``) state; the
 satisfied state's self-loop is in every acceptance set. Only states reachable from
 ``(start, initial)`` are built, breadth first.
+
+Before anything is built the product's size is bounded from above (:func:`estimate`): at most
+``S * Q`` states for ``S`` world states and ``Q`` automaton states (the builder's table of ids
+has exactly that many entries), and at most ``Q * T + S * J`` transitions for ``T`` world
+transitions (every (state, action, successor) of the world) and ``J`` epsilon jumps. A product
+whose bound passes ``max_product_states`` states, or twenty times as many transitions, is
+refused with :class:`ProductSizeError`, as the world loader refuses a grid of more than a
+million cells.
 """
 
 from __future__ import annotations
@@ -17,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
 
 VIOLATED, SATISFIED = 0, 1
@@ -58,16 +67,70 @@ class Product:
         return len(self.transitions.targets)
 
 
-def build_product(world: World, automaton: DigitalAutomaton) -> Product:
-    """The reachable product of ``world`` and ``automaton`` (see the module docstring)."""
-    return _Builder(world, automaton).build()
+DEFAULT_MAX_PRODUCT_STATES = 20_000_000
+"""The largest product (its bound ``S * Q`` on the states) built by default
+(``--max-product-states``); a product of a million reachable states takes about 2 GB to check."""
+
+TRANSITIONS_PER_STATE = 20
+"""The bound on transitions may be this many times ``max_product_states`` (a grid world has at
+most 5 actions of at most 3 successors each: 15 per state, jumps aside)."""
+
+
+class ProductSizeError(LimitError):
+    """The product would be larger than its limit (``max_product_states``)."""
+
+
+def estimate(world: World, automaton: DigitalAutomaton) -> tuple[int, int]:
+    """Upper bounds on the product's states and transitions, before it is built (see the
+    module docstring): ``(S * Q + 2, Q * T + S * J)``."""
+    q = len(automaton.states)
+    states = world.num_states * q + 2
+    transitions = q * len(world.transitions.targets) + world.num_states * len(automaton.epsilon)
+    return states, transitions
+
+
+def check_size(
+    world: World, automaton: DigitalAutomaton, max_product_states: int | None
+) -> tuple[int, int]:
+    """:func:`estimate`, raising :class:`ProductSizeError` when it passes the limit
+    (``None``: no limit)."""
+    states, transitions = estimate(world, automaton)
+    if max_product_states is None:
+        return states, transitions
+    if states > max_product_states or transitions > TRANSITIONS_PER_STATE * max_product_states:
+        raise ProductSizeError(
+            f"the product of {world.num_states:,} world states and {len(automaton.states):,} "
+            f"automaton states may have {states:,} states and {transitions:,} transitions, past "
+            f"the limit of {max_product_states:,} states ({TRANSITIONS_PER_STATE} times as many "
+            "transitions); raise it with --max-product-states N (max_product_states from "
+            "Python), or shrink the world or the formula's bounds"
+        )
+    return states, transitions
+
+
+def build_product(
+    world: World,
+    automaton: DigitalAutomaton,
+    *,
+    max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> Product:
+    """The reachable product of ``world`` and ``automaton`` (see the module docstring).
+
+    Refuses a product whose size bound passes ``max_product_states`` (``None``: no limit) with
+    :class:`ProductSizeError`; stops with :class:`mitlc.limits.LimitError` after
+    ``time_limit`` seconds (``None``: no limit), or at ``deadline`` when one is given."""
+    check_size(world, automaton, max_product_states)
+    clock = Deadline.of(deadline, time_limit, "the product build").at("the product build")
+    return _Builder(world, automaton, clock).build()
 
 
 class _Builder:
     """Breadth-first exploration, one frontier (all states of a level) at a time in numpy."""
 
-    def __init__(self, world: World, automaton: DigitalAutomaton) -> None:
-        self.world = world
+    def __init__(self, world: World, automaton: DigitalAutomaton, deadline: Deadline) -> None:
+        self.world, self.deadline = world, deadline
         self.num_q = len(automaton.states)
         self.delta = np.asarray(automaton.delta, dtype=np.int64)
         self.marks = np.asarray(automaton.marks, dtype=np.int64)
@@ -115,6 +178,7 @@ class _Builder:
         initial, frontier = self.intern(np.array([self.initial_code]))
         codes = self.codes[-1]
         while len(frontier):
+            self.deadline.check_now()
             s, q = codes // num_q, codes % num_q
             letter = world.letters[s]
             q_next, marks = self.delta[q, letter], self.marks[q, letter]

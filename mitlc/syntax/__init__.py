@@ -23,7 +23,15 @@ from mitlc.syntax.ast import (
     children,
     subformulas,
 )
-from mitlc.syntax.parser import decode, parse, parse_bytes, parse_file
+from mitlc.syntax.parser import (
+    decode,
+    parse,
+    parse_batch_file,
+    parse_bytes,
+    parse_file,
+    parse_lines,
+    read_spec,
+)
 from mitlc.syntax.printer import to_text
 from mitlc.syntax.to_json import ast_to_data
 
@@ -51,8 +59,11 @@ __all__ = [
     "children",
     "decode",
     "parse",
+    "parse_batch_file",
     "parse_bytes",
     "parse_file",
+    "parse_lines",
+    "read_spec",
     "subformulas",
     "to_text",
 ]

@@ -94,8 +94,9 @@ def _unexpected_character(
             "lowercase letter"
         )
         return SpecSyntaxError(f"unexpected character '{char}': {hint}", location)
+    shown = f"'{char}'" if char.isprintable() else f"U+{ord(char):04X}"
     allowed = describe_expected(_accepted_after(text[:position], err.allowed or ()))
-    return SpecSyntaxError(f"unexpected character '{char}'; expected {allowed}", location)
+    return SpecSyntaxError(f"unexpected character {shown}; expected {allowed}", location)
 
 
 def _accepted_after(prefix: str, fallback: Iterable[str]) -> set[str]:

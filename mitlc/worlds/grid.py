@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds.model import Observations, Sparse
 from mitlc.worlds.schema import Motion, WorldFile, show
 
@@ -101,7 +102,7 @@ def direction_between(first: Cell, second: Cell) -> str | None:
 
 FieldPath = tuple[str | int, ...]
 Found = list[tuple[FieldPath, str]]
-MAX_CELLS = 1_000_000
+MAX_CELLS = MAX_GRID_CELLS
 
 
 def check(world: WorldFile) -> tuple[Layout, Found]:
@@ -111,7 +112,7 @@ def check(world: WorldFile) -> tuple[Layout, Found]:
     checker = _Checker(Layout(rows, cols, frozenset(world.blocked), {}))
     if rows * cols > MAX_CELLS:
         return checker.bare, [
-            (("grid",), f"a {rows}x{cols} grid is too large (at most {MAX_CELLS} cells)")
+            (("grid",), f"a {rows}x{cols} grid is too large (at most {MAX_CELLS:,} cells)")
         ]
     for i, cell in enumerate(world.blocked):
         checker.cell(("blocked", i), cell, free=False)

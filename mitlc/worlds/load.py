@@ -21,7 +21,10 @@ import yaml
 from pydantic import ValidationError
 
 from mitlc.errors import MitlcError, SpecError, locate
-from mitlc.syntax import atoms, decode, parse
+from mitlc.inputs import bad_utf8, read_head
+from mitlc.limits import MAX_WORLD_BYTES
+from mitlc.syntax import atoms, parse, read_spec
+from mitlc.worlds import safe_yaml
 from mitlc.worlds.grid import (
     FieldPath,
     Layout,
@@ -63,26 +66,6 @@ class WorldError(MitlcError):
         super().__init__("\n".join(p.render(filename) for p in self.problems))
 
 
-class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader, refusing duplicate keys (PyYAML silently keeps the last)."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen: dict[str, yaml.Mark] = {}
-        for key, _ in node.value:
-            if isinstance(key, yaml.ScalarNode) and key.value != "<<":
-                if key.value in seen:
-                    first = seen[key.value]
-                    raise yaml.constructor.ConstructorError(
-                        None,
-                        None,
-                        f"duplicate key {key.value!r} (first at line {first.line + 1}, "
-                        f"column {first.column + 1})",
-                        key.start_mark,
-                    )
-                seen[key.value] = key.start_mark
-        return super().construct_mapping(node, deep=deep)
-
-
 @dataclass
 class _Source:
     """The parsed YAML and where each path starts (its value, and its key in a mapping)."""
@@ -117,29 +100,28 @@ def _marks(node: yaml.Node, path: FieldPath, source: _Source, active: set[int]) 
 
 
 def read_yaml(path: Path, filename: str) -> _Source:
-    """Read and parse the YAML at ``path``; a :class:`WorldError` if it cannot."""
+    """Read and parse the YAML at ``path``; a :class:`WorldError` if it cannot (unreadable,
+    larger than :data:`~mitlc.limits.MAX_WORLD_BYTES`, not UTF-8, not YAML, or beyond the
+    limits of :mod:`mitlc.worlds.safe_yaml`)."""
     try:
-        data = path.read_bytes()
+        data, more = read_head(path, MAX_WORLD_BYTES)
     except OSError as err:
         raise WorldError(
-            filename, [Problem(f"cannot read the world file: {err.strerror}")]
+            filename, [Problem(f"cannot read the world file: {err.strerror or err}")]
         ) from None
+    if more:
+        message = (
+            f"the world file is too large: more than {MAX_WORLD_BYTES:,} bytes (mitlc's limit)"
+        )
+        raise WorldError(filename, [Problem(message)])
+    bad = bad_utf8(data, filename)
+    if bad is not None:
+        message, loc = bad
+        message += "; world files must be UTF-8 text"
+        raise WorldError(filename, [Problem(message, (), loc.line, loc.column)])
+    text = data.decode("utf-8-sig")
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        try:
-            decode(data, filename)  # for the location of the first bad byte
-        except SpecError as err:
-            loc, message = err.location, err.message.replace("specs", "world files")
-            raise WorldError(filename, [Problem(message, (), loc.line, loc.column)]) from None
-        raise  # pragma: no cover - decode raises on what utf-8-sig refuses
-    try:
-        loader = _Loader(text)
-        try:
-            node = loader.get_single_node()
-            source = _Source(None if node is None else loader.construct_document(node), {}, {})
-        finally:
-            loader.dispose()
+        value, node = safe_yaml.load(text)
     except yaml.MarkedYAMLError as err:
         raise WorldError(filename, [_yaml_problem(err, text, filename)]) from None
     except yaml.reader.ReaderError as err:  # a character YAML does not allow
@@ -148,6 +130,7 @@ def read_yaml(path: Path, filename: str) -> _Source:
         shown = f"U+{char:04X}" if isinstance(char, int) else repr(char)
         message = f"invalid YAML: the character {shown} is not allowed"
         raise WorldError(filename, [Problem(message, (), loc.line, loc.column)]) from None
+    source = _Source(value, {}, {})
     if node is not None:
         _marks(node, (), source, set())
     return source
@@ -156,7 +139,8 @@ def read_yaml(path: Path, filename: str) -> _Source:
 def _yaml_problem(err: yaml.MarkedYAMLError, text: str, filename: str) -> Problem:
     mark = err.problem_mark or err.context_mark
     line, column = (mark.line + 1, mark.column + 1) if mark else (0, 0)
-    message = f"invalid YAML: {err.problem or err.context}"
+    invalid = "" if isinstance(err, safe_yaml.YamlLimitError) else "invalid YAML: "
+    message = f"{invalid}{err.problem or err.context}"
     if err.context and err.problem and err.context_mark:
         cm = err.context_mark
         message += f" ({err.context} at line {cm.line + 1}, column {cm.column + 1})"
@@ -300,11 +284,12 @@ def _load_spec(world: WorldFile, path: Path, source: _Source) -> tuple[str, str,
         spec_path = path.parent / world.spec
         where: FieldPath = ("spec",)
         try:
-            text = decode(spec_path.read_bytes(), str(spec_path))
+            text = read_spec(spec_path)
             formula = parse(text, str(spec_path))
         except (OSError, ValueError) as err:  # ValueError: a NUL in the path
             reason = "not found" if isinstance(err, FileNotFoundError) else _reason(err)
-            message = f"cannot read the spec file {show(world.spec)} ({spec_path}): {reason}"
+            shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(spec_path))
+            message = f"cannot read the spec file {show(world.spec)} ({shown}): {reason}"
             raise WorldError(filename, [source.locate(where, message)]) from None
         except SpecError as err:
             problem = source.locate(

@@ -10,6 +10,7 @@ so that :func:`mitlc.worlds.load.issues_of` can show it as is.
 from __future__ import annotations
 
 import json
+import math
 import re
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
@@ -24,6 +25,8 @@ from pydantic import (
     model_validator,
 )
 from pydantic_core import PydanticCustomError
+
+from mitlc.limits import MAX_HORIZON
 
 Action = Literal["up", "down", "left", "right", "stay"]
 ACTIONS: tuple[Action, ...] = ("up", "down", "left", "right", "stay")
@@ -63,7 +66,8 @@ def _is_int(value: object) -> bool:
 
 
 def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
+    """An int or a finite float (not a bool, nan or infinity)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _cell(value: object) -> object:
@@ -92,6 +96,17 @@ PositiveInt = Annotated[
     int, Field(gt=0), _scalar("a positive integer", lambda v: _is_int(v) and v > 0)
 ]
 Number = Annotated[float, _scalar("a number", _is_number)]
+
+
+def _horizon(value: object) -> object:
+    if not isinstance(value, int) or isinstance(value, bool) or value <= 0:
+        raise _fail("a positive integer", value)
+    if value > MAX_HORIZON:
+        raise _fail(f"at most {MAX_HORIZON:,} steps (mitlc's limit)", value)
+    return value
+
+
+Horizon = Annotated[int, Field(gt=0, le=MAX_HORIZON), BeforeValidator(_horizon)]
 Probability = Annotated[
     float,
     Field(ge=0, le=1),
@@ -100,9 +115,25 @@ Probability = Annotated[
 Discount = Annotated[
     float, Field(gt=0, le=1), _scalar("a number in (0, 1]", lambda v: _is_number(v) and 0 < v <= 1)
 ]
-Name = Annotated[
-    str, _scalar("a non-empty string", lambda v: isinstance(v, str) and bool(v.strip()))
-]
+
+
+def _world_name(value: object) -> object:
+    """A world's name names its run directory (``runs/NAME-q-s0``): one printable path
+    component, so that a world file cannot send a run elsewhere."""
+    if not (isinstance(value, str) and value.strip()):
+        raise _fail("a non-empty string", value)
+    if (
+        len(value) > 100
+        or value.startswith(".")
+        or any(c in "/\\" or not c.isprintable() for c in value)
+    ):
+        raise _fail(
+            "a name of at most 100 printable characters, without / or \\ or a leading .", value
+        )
+    return value
+
+
+WorldName = Annotated[str, BeforeValidator(_world_name)]
 Proposition = Annotated[
     str,
     _scalar(
@@ -226,8 +257,10 @@ class Reward(_Model):
 class WorldFile(_Model):
     """A world file: a grid world (an MDP, or a POMDP with an observation model) and its task."""
 
-    name: Name | None = Field(
-        default=None, description="The world's name (default: the file's stem)."
+    name: WorldName | None = Field(
+        default=None,
+        description="The world's name (default: the file's stem), which names its run "
+        "directories: printable, without / or \\ or a leading '.'.",
     )
     grid: Grid = Field(description="The grid's size: its rows and columns.")
     blocked: Cells = Field(
@@ -269,7 +302,9 @@ class WorldFile(_Model):
         description="The task: a spec file's path, relative to this file, or {formula: ...}."
     )
     reward: Reward = Field(default=Reward(), description="The reward terms.")
-    horizon: PositiveInt = Field(description="The number of steps of an episode.")
+    horizon: Horizon = Field(
+        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
+    )
     discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
     training: dict[Any, Any] = Field(
         default_factory=dict, description="Settings for the learners: a mapping, free-form."
