@@ -127,6 +127,14 @@ def test_translation_stops_at_the_time_limit() -> None:
     assert time.monotonic() - start < 5
 
 
+def test_many_recurrences_stop_at_the_time_limit() -> None:
+    # 2^17 candidate jumps from the initial state, nearly all of them empty: the enumeration of
+    # epsilon jumps reads the clock too (it ran for minutes past --time-limit before).
+    formula = parse("G F a & " + "G F " * 16 + "b")
+    with pytest.raises(LimitError, match=r"time limit of 0\.5 s"):
+        translate(formula, time_limit=0.5)
+
+
 def test_compile_stops_at_the_time_limit_through_the_cli() -> None:
     result = runner.invoke(app, ["compile", "-e", EXPLOSIVE, "--time-limit", "0.3"])
     assert result.exit_code == 1

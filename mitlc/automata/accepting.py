@@ -26,6 +26,7 @@ from itertools import combinations
 from mitlc.automata.progress import Progression
 from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 from mitlc.automata.text import form_text
+from mitlc.limits import Deadline
 
 
 def closure(store: TermStore, form: int) -> frozenset[int]:
@@ -149,9 +150,17 @@ class Guess:
 
 
 def guesses(
-    substitution: Substitution, form: int, mu: tuple[int, ...], nu: tuple[int, ...]
+    substitution: Substitution,
+    form: int,
+    mu: tuple[int, ...],
+    nu: tuple[int, ...],
+    deadline: Deadline | None = None,
 ) -> Iterator[Guess]:
-    """The accepting states an epsilon jump from obligation ``form`` may enter, each once."""
+    """The accepting states an epsilon jump from obligation ``form`` may enter, each once.
+
+    There are up to ``2^|mu| * 2^|nu|`` candidates (most of them empty for most formulas);
+    ``deadline`` is read at each, so a formula with many recurrences stops at its time limit."""
+    clock = Deadline.none() if deadline is None else deadline
     store = substitution.store
     present = closure(store, form)
     mu_here = [a for a in mu if a in present]
@@ -163,6 +172,7 @@ def guesses(
         if safety_core == store.false:
             continue
         for ys in _subsets(nu_here):
+            clock.check_now()
             safety = safety_core
             for chi in sorted(ys):
                 weak = substitution.nu(store.atom_form(chi), xs)

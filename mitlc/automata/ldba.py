@@ -222,7 +222,7 @@ class _Builder:
             explored.delta.append(targets)
             explored.marks.append(marks)
             if key.kind == "initial" and self.mu:
-                for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu):
+                for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu, deadline):
                     target = explored.id(Key.of_guess(guess), limit)
                     explored.epsilon.append((position, target))
             position += 1
