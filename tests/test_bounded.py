@@ -199,6 +199,12 @@ def test_a_horizon_past_the_fixpoint_costs_nothing() -> None:
     short, history = pmax_horizon(product, 80)
     assert len(history) == 81 and short == within
     assert (history[-1] == history[-2]).all()
+    # With the history kept, the steps past the fixpoint share one read-only table.
+    _, long_history = pmax_horizon(product, 10**6)
+    assert len(long_history) == 10**6 + 1
+    assert len({id(table) for table in long_history}) < 200
+    assert not long_history[-1].flags.writeable
+    assert (long_history[-1] == history[-1]).all()
 
 
 # --- the state limit ------------------------------------------------------------------------------

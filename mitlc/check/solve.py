@@ -224,10 +224,11 @@ def pmax_horizon(
     of the mask ``mask | marks[c]`` that choice ``c`` moves to from the whole table at once.
 
     Once a step changes nothing the table is a fixpoint and the steps left are not computed
-    (with ``keep_history`` they are copies of it), so a horizon far past the product's depth
-    costs no more than the depth. Otherwise a step costs at least the states it recomputes and
-    a horizon of a billion steps is stopped by the time limit: :class:`mitlc.limits.LimitError`
-    after ``time_limit`` seconds (``None``: no limit), or at ``deadline`` when one is given."""
+    (with ``keep_history`` they are one read-only copy of it), so a horizon far past the
+    product's depth costs no more than the depth. Otherwise a step costs at least the states it
+    recomputes and a horizon of a billion steps is stopped by the time limit:
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax_horizon")
     masks = 1 << product.num_sets
     n = product.num_states
@@ -281,8 +282,10 @@ def pmax_horizon(
         if keep_history:
             history.append(table.copy())
         if not len(changed):  # a fixpoint: every later step gives this table again
-            if keep_history:
-                history.extend(table.copy() for _ in range(horizon - step - 1))
+            if keep_history:  # one read-only table for all of them, not a copy each
+                final = table.copy()
+                final.setflags(write=False)
+                history.extend([final] * (horizon - step - 1))
             break
     if not keep_history:
         history = [table]
