@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -14,7 +16,7 @@ from typer.testing import CliRunner
 
 from mitlc.automata import compile_formula
 from mitlc.automata.artifact import from_data, to_json
-from mitlc.automata.dot import to_dot
+from mitlc.automata.dot import to_dot, write_atomically
 from mitlc.cli import app
 from mitlc.syntax import parse, parse_file
 from tests.conftest import GOLDEN, ROOT, check_golden
@@ -161,3 +163,23 @@ def test_atomic_writes_replace_whole_files_with_the_usual_permissions(tmp_path: 
     assert target.read_bytes() == b"second"
     assert target.stat().st_mode & 0o777 == 0o640
     assert [p.name for p in target.parent.iterdir()] == ["out.json"]  # no temporary left
+
+
+def test_output_to_a_device_or_pipe_is_written_in_place(tmp_path: Path) -> None:
+    # `-o /dev/null` once renamed a regular file over /dev/null (as root): a path that is not a
+    # regular file is written into, never replaced. A named pipe stands in for the device.
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    write_atomically(fifo, b"through the pipe\n")
+    reader.join(timeout=10)
+    assert received == [b"through the pipe\n"]
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
+    with pytest.raises(IsADirectoryError):
+        write_atomically(tmp_path, b"x")
+    regular = tmp_path / "out.json"
+    write_atomically(regular, b"1\n")
+    write_atomically(regular, b"2\n")
+    assert regular.read_bytes() == b"2\n" and stat.S_ISREG(regular.lstat().st_mode)

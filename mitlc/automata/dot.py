@@ -8,7 +8,9 @@ drawn apart, dashed.
 
 from __future__ import annotations
 
+import errno
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -135,7 +137,21 @@ def _pipe(dot: str, fmt: str) -> bytes:
 def write_atomically(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file (flushed to disk) and a rename, so
     that a reader sees the old file or the new one, never a part; the file gets the usual
-    permissions (``0o666`` less the umask), not the temporary file's private ``0o600``."""
+    permissions (``0o666`` less the umask), not the temporary file's private ``0o600``.
+
+    A path that is not a regular file (``/dev/null``, ``/dev/stdout``, a named pipe) is written
+    in place, never replaced: a rename over it would put a regular file where the device was.
+    """
+    try:
+        mode = path.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError(errno.EISDIR, "is a directory", str(path))
+        with path.open("wb") as out:
+            out.write(data)
+        return
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
