@@ -205,11 +205,7 @@ class TermStore:
             return self._substitute_sequential(cubes, replace)
         found: set[Cube] = set()
         for cube in cubes:
-            conjunction = self.true
-            for atom in cube:
-                conjunction = self.and_(conjunction, replace(atom))
-                if conjunction == self.false:
-                    break
+            conjunction = self._conjoin(cube, replace)
             if conjunction == self.true:
                 return self.true
             found |= self.forms[conjunction]
@@ -220,15 +216,19 @@ class TermStore:
     def _substitute_sequential(self, cubes: Form, replace: Callable[[int], int]) -> int:
         result = self.false
         for cube in cubes:
-            conjunction = self.true
-            for atom in cube:
-                conjunction = self.and_(conjunction, replace(atom))
-                if conjunction == self.false:
-                    break
-            result = self.or_(result, conjunction)
+            result = self.or_(result, self._conjoin(cube, replace))
             if result == self.true:
                 break
         return result
+
+    def _conjoin(self, cube: Cube, replace: Callable[[int], int]) -> int:
+        """The conjunction of ``replace(atom)`` over the atoms of ``cube`` (false at once)."""
+        conjunction = self.true
+        for atom in cube:
+            conjunction = self.and_(conjunction, replace(atom))
+            if conjunction == self.false:
+                break
+        return conjunction
 
     def all_of(self, forms: Iterable[int]) -> int:
         """The conjunction of several forms."""
