@@ -14,6 +14,7 @@ import typer
 
 from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
 from mitlc.learn.run import CONFIG, RunError, read_config
+from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline
 from mitlc.worlds import read_world_file
 
 RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mitlc train).")]
@@ -130,6 +131,16 @@ def train_command(
         bool, typer.Option("--eval/--no-eval", help="Evaluate the policy at the end.")
     ] = True,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    time_limit: Annotated[
+        float,
+        typer.Option(
+            "--time-limit",
+            min=0,
+            metavar="SECONDS",
+            help="Stop the set-up (compiling the task, building the product) after this many "
+            "seconds (0: no limit); the training itself runs its episodes (Ctrl-C stops it).",
+        ),
+    ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
     from mitlc.learn.run import train
@@ -176,6 +187,7 @@ def train_command(
             resume=resume,
             progress=show,
             should_stop=stop,
+            deadline=Deadline(time_limit, "mitlc train", CLI_HOW),
         )
     if result.stopped:
         typer.echo(

@@ -138,3 +138,14 @@ def test_a_second_run_in_the_same_directory_is_refused(tmp_path: Path) -> None:
     assert first.returncode == 130
     episodes = [json.loads(line)["episodes"] for line in (out / "metrics.jsonl").open()]
     assert episodes == sorted(set(episodes))
+
+
+def test_train_set_up_stops_at_its_time_limit(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["train", CASE1, "--out", str(out), "--time-limit", "1e-9"])
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.output
+    assert lines[0].startswith("mitlc train stopped at the time limit of 1e-09 s (during ")
+    assert lines[0].endswith("raise it with --time-limit SECONDS (0 for none)")
+    assert not (out / "config.json").exists()

@@ -45,6 +45,7 @@ from mitlc.learn.rundir import RunError as RunError
 from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
 from mitlc.learn.vec import Tables, VecProduct, tables
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.env import relabel
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
@@ -100,16 +101,25 @@ class Setting:
     config: TrainConfig
 
 
-def prepare(world_path: Path, config: TrainConfig, spec: str | None = None) -> Setting:
-    """Load the world, compile its task (``spec`` in its place if given), build the product."""
+def prepare(
+    world_path: Path,
+    config: TrainConfig,
+    spec: str | None = None,
+    *,
+    deadline: Deadline | None = None,
+) -> Setting:
+    """Load the world, compile its task (``spec`` in its place if given), build the product;
+    the compile and the product stop at ``deadline`` (by default
+    :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds)."""
+    clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "setting up the run")
     world = load_world(world_path)
     if spec is not None and spec != world.spec:
         try:
             world = relabel(world, read_world_file(world_path).labels, spec)
         except ValueError as err:
             raise RunError(f"{world_path}: the task {spec!r}: {err}") from None
-    automaton = translate(parse(world.spec, world.spec_source))
-    product = build_product(world, automaton)
+    automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
+    product = build_product(world, automaton, deadline=clock.at("the product"))
     return Setting(world_path, world, automaton, product, tables(product, world), config)
 
 
@@ -280,13 +290,15 @@ def train(
     resume: bool = False,
     progress: Callable[[Progress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
+    deadline: Deadline | None = None,
 ) -> RunResult:
     """Train ``config.algo`` on the world file's product for ``config.episodes`` episodes in
     all, writing the run to ``out`` (see the module docstring), which it locks meanwhile.
     ``should_stop`` is polled after every step; when it says so, the run checkpoints and
-    returns with ``stopped`` set."""
+    returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
+    :func:`prepare`), not the training, which runs its episodes."""
     directory = Path(out)
-    setting = prepare(Path(world_path), config, spec)
+    setting = prepare(Path(world_path), config, spec, deadline=deadline)
     if resume:
         read_config(directory)  # a run directory at all?
     else:
