@@ -6,34 +6,37 @@ usage errors exit with status 2, as Click does.
 
 from __future__ import annotations
 
-import functools
 import json
-import sys
-from collections.abc import Callable
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, ParamSpec, TypeVar
+from typing import Annotated
 
 import typer
 
 from mitlc import __version__
-from mitlc.automata import DEFAULT_MAX_STATES, DigitalAutomaton, compile_formula
+from mitlc.automata import DEFAULT_MAX_STATES, compile_formula
 from mitlc.automata.artifact import from_data, to_json
 from mitlc.automata.dot import render, to_dot, write_atomically
 from mitlc.automata.hoa import to_hoa, to_hoa_stream
 from mitlc.automata.runs import run_states
+from mitlc.cli_check import register as register_checking
+from mitlc.cli_common import (
+    ExprOpt,
+    MaxStatesOpt,
+    SpecArg,
+    TimeLimitOpt,
+    UsageError,
+    command_deadline,
+    json_dumps,
+    load_formula,
+    reports_errors,
+)
 from mitlc.cli_learn import register as register_learning
 from mitlc.errors import MitlcError
-from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline, LimitError
-from mitlc.product.explicit import DEFAULT_MAX_PRODUCT_STATES
-from mitlc.syntax import Formula, ast_to_data, atoms, parse, parse_batch_file, read_spec, to_text
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.syntax import ast_to_data, atoms, parse_batch_file, to_text
 from mitlc.syntax.tree import tree_text
 from mitlc.traces import TraceError, read_trace, read_trace_text, trace_columns
-from mitlc.worlds.model import World
-
-if TYPE_CHECKING:
-    from mitlc.check.observed import ObservedBound
-    from mitlc.product.explicit import Product
 
 app = typer.Typer(
     name="mitlc",
@@ -43,69 +46,19 @@ app = typer.Typer(
     add_completion=False,
 )
 
-P = ParamSpec("P")
-R = TypeVar("R")
-
-SpecArg = Annotated[
-    str | None,
-    typer.Argument(
-        help="A spec file holding one MITL formula, or '-' for standard input.",
-        show_default=False,
-    ),
-]
-ExprOpt = Annotated[
-    str | None,
-    typer.Option("--expr", "-e", help="A formula given on the command line instead of SPEC."),
-]
 
 
-class UsageError(MitlcError):
-    """The command line names no spec, or two."""
-
-
-def _reports_errors(command: Callable[P, R]) -> Callable[P, R]:
-    """Print mitlc's errors (and unreadable files) as a message, exit 1, never a traceback."""
-
-    @functools.wraps(command)
-    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
-        try:
-            return command(*args, **kwargs)
-        except MitlcError as err:
-            typer.echo(err.render(), err=True)
-            raise typer.Exit(1) from None
-        except OSError as err:
-            name = f"{err.filename}: " if err.filename is not None else ""
-            typer.echo(f"mitlc: {name}{err.strerror or err}", err=True)
-            raise typer.Exit(1) from None
-
-    return wrapper
-
-
-def load_formula(spec: str | None, expr: str | None) -> Formula:
-    """The formula named on the command line: a file, standard input ('-'), or ``-e``."""
-    if (spec is None) == (expr is None):
-        raise UsageError("mitlc: give one formula: a SPEC file (or '-'), or -e FORMULA")
-    if expr is not None:
-        return parse(expr, "<expr>")
-    assert spec is not None
-    if spec == "-":
-        return parse(read_spec(sys.stdin.buffer, "<stdin>"), "<stdin>")
-    return parse(read_spec(spec), spec)
-
-
-def _json_dumps(data: Any) -> str:
-    return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False)
 
 
 @app.command()
-@_reports_errors
+@reports_errors
 def fmt(spec: SpecArg = None, expr: ExprOpt = None) -> None:
     """Print the canonical text of a formula (it parses back to the same formula)."""
     typer.echo(to_text(load_formula(spec, expr)))
 
 
 @app.command(name="parse")
-@_reports_errors
+@reports_errors
 def parse_command(
     spec: SpecArg = None,
     expr: ExprOpt = None,
@@ -115,7 +68,7 @@ def parse_command(
 ) -> None:
     """Print the abstract syntax tree of a formula."""
     formula = load_formula(spec, expr)
-    typer.echo(_json_dumps(ast_to_data(formula)) if as_json else tree_text(formula))
+    typer.echo(json_dumps(ast_to_data(formula)) if as_json else tree_text(formula))
 
 
 class Format(StrEnum):
@@ -124,28 +77,6 @@ class Format(StrEnum):
     json = "json"
     dot = "dot"
     hoa = "hoa"
-
-
-MaxStatesOpt = Annotated[
-    int,
-    typer.Option(
-        "--max-states", min=1, help="Stop a translation that grows past this many states."
-    ),
-]
-TimeLimitOpt = Annotated[
-    float,
-    typer.Option(
-        "--time-limit",
-        min=0,
-        metavar="SECONDS",
-        help="Stop the command after this many seconds (0: no limit).",
-    ),
-]
-
-
-def _deadline(seconds: float, command: str) -> Deadline:
-    """The time limit of one command (``--time-limit``)."""
-    return Deadline(seconds, f"mitlc {command}", CLI_HOW)
 
 
 OutOpt = Annotated[
@@ -161,7 +92,7 @@ def _emit(text: str, output: Path | None) -> None:
 
 
 @app.command(name="compile")
-@_reports_errors
+@reports_errors
 def compile_command(
     spec: SpecArg = None,
     expr: ExprOpt = None,
@@ -177,7 +108,7 @@ def compile_command(
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Compile a formula into its timed LDGBA (JSON artifact, DOT drawing or HOA)."""
-    deadline = _deadline(time_limit, "compile")
+    deadline = command_deadline(time_limit, "compile")
     if batch is not None:
         if spec is not None or expr is not None:
             raise UsageError("mitlc: --batch reads its formulas from FILE; give no SPEC or -e")
@@ -206,7 +137,7 @@ def _compile_batch(path: Path, fmt: Format, max_states: int, deadline: Deadline)
 
 
 @app.command(name="render")
-@_reports_errors
+@reports_errors
 def render_command(
     source: Annotated[
         str | None,
@@ -237,14 +168,14 @@ def render_command(
         timed = compile_formula(
             load_formula(source, expr),
             max_states=max_states,
-            deadline=_deadline(time_limit, "render"),
+            deadline=command_deadline(time_limit, "render"),
         ).timed
     render(to_dot(timed), output)
     typer.echo(f"wrote {output}", err=True)
 
 
 @app.command()
-@_reports_errors
+@reports_errors
 def monitor(
     spec: Annotated[str, typer.Argument(help="A spec file, or '-' for standard input.")],
     trace: Annotated[
@@ -262,7 +193,7 @@ def monitor(
     if missing:
         raise TraceError(f"{trace}: no column for the spec's proposition(s) {', '.join(missing)}")
     letters = read_trace(trace, text)
-    deadline = _deadline(time_limit, "monitor")
+    deadline = command_deadline(time_limit, "monitor")
     digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
     states = run_states(digital, letters)
     for step, (letter, state) in enumerate(zip(letters, states[1:], strict=True)):
@@ -275,163 +206,8 @@ def monitor(
             typer.echo(f"{step:>5}  {verdict:<9}  {'{' + ', '.join(true) + '}'}")
 
 
-@app.command(name="check")
-@_reports_errors
-def check_command(
-    world_file: Annotated[Path, typer.Argument(metavar="WORLD", help="A world file (YAML).")],
-    spec: Annotated[
-        str | None, typer.Option("--spec", help="A spec file instead of the world's own task.")
-    ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
-    policy: Annotated[
-        Path | None, typer.Option(
-            "--policy",
-            help="Write the optimal policy (JSON) here; for a POMDP, the observation-based one.",
-        )
-    ] = None,
-    export_drn: Annotated[
-        Path | None, typer.Option("--export-drn", help="Write the product in Storm's DRN format.")
-    ] = None,
-    export_dot: Annotated[
-        Path | None,
-        typer.Option("--export-dot", help="Draw a small product (at most 2,000 states) as DOT."),
-    ] = None,
-    pomdp_bounds: Annotated[
-        bool,
-        typer.Option(
-            "--pomdp-bounds/--no-pomdp-bounds",
-            help="For a POMDP world, add Storm's belief-exploration bounds (needs stormpy).",
-        ),
-    ] = True,
-    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
-    max_product_states: Annotated[
-        int,
-        typer.Option(
-            "--max-product-states",
-            min=1,
-            help="Refuse a product that may have more states than this (world x automaton).",
-        ),
-    ] = DEFAULT_MAX_PRODUCT_STATES,
-    time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
-) -> None:
-    """Check a world exactly: the best probability of doing its task, and a policy for it."""
-    from mitlc.check import check
-    from mitlc.check.drn import to_drn
-    from mitlc.worlds import load_world
-
-    world = load_world(world_file)
-    if spec is not None:
-        from mitlc.product import relabel
-        from mitlc.worlds import read_world_file
-
-        formula = load_formula(spec, None)
-        try:
-            labels = read_world_file(world_file).labels
-            world = relabel(world, labels, to_text(formula))
-        except ValueError as err:
-            raise UsageError(f"{world_file}: the spec {spec}: {err}") from None
-    else:
-        formula = parse(world.spec, world.spec_source)
-    deadline = _deadline(time_limit, "check")
-    digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
-    if world.is_pomdp:
-        typer.echo(
-            "note: a POMDP world; pmax and pmax_horizon are the fully observable upper bounds, "
-            "pmax_horizon_observed the exact success of an observation-based policy (a lower "
-            "bound)",
-            err=True,
-        )
-    report = check(world, digital, max_product_states=max_product_states, deadline=deadline)
-    if export_drn is not None:
-        write_atomically(export_drn, to_drn(report.product).encode("utf-8"))
-    if export_dot is not None:
-        from mitlc.check.drn import to_product_dot
-
-        try:
-            dot = to_product_dot(report.product, list(world.cells), world.actions)
-        except ValueError as err:
-            raise UsageError(f"mitlc: --export-dot: {err}") from None
-        write_atomically(export_dot, dot.encode("utf-8"))
-    summary = report.summary()
-    observed, why = _observed(world, report.product, deadline) if world.is_pomdp else (None, "")
-    if world.is_pomdp:
-        summary["pmax_horizon_observed"] = observed.value if observed is not None else why
-    if policy is not None:
-        if observed is not None:
-            data: object = _observed_policy(world, observed)
-        elif world.is_pomdp:
-            raise UsageError(f"mitlc: --policy: no observation-based policy ({why})")
-        else:
-            data = report.policy_data(world)
-        write_atomically(policy, (_json_dumps(data) + "\n").encode("utf-8"))
-    if world.is_pomdp and pomdp_bounds:
-        summary["bounds"] = _pomdp_bounds(world, digital, max_product_states, deadline)
-    if as_json:
-        typer.echo(_json_dumps(summary))
-        return
-    width = max(len(k) for k in summary)
-    for key, value in summary.items():
-        shown = f"{value:.6f}" if isinstance(value, float) else str(value)
-        if isinstance(value, dict) and "lower" in value:
-            shown = f"[{value['lower']:.6f}, {value['upper']:.6f}] ({value['method']})"
-        typer.echo(f"{key:<{width}}  {shown}")
-
-
-def _observed(
-    world: World, product: Product, deadline: Deadline
-) -> tuple[ObservedBound | None, str]:
-    """The best observation-based policy found and its exact success, or why there is none
-    (its time limit included: the exact results above it stand)."""
-    from mitlc.check.observed import ObservedBoundError, observed_bound
-
-    try:
-        stage = deadline.at("the observation-based bound")
-        return observed_bound(world, product, deadline=stage), ""
-    except (ObservedBoundError, LimitError) as err:
-        return None, f"unavailable: {err}"
-
-
-def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
-    """The observation-based policy as data: an action per step, observation and automaton
-    state that it meets."""
-    assert world.observations is not None
-    names = world.observations.names
-    return {
-        "kind": "observation-based",
-        "pmax_horizon_observed": found.value,
-        "rows": [
-            {
-                "step": t,
-                "observation": names[o],
-                "automaton_state": q,
-                "action": world.actions[a],
-            }
-            for t, o, q, a in found.rows()
-        ],
-    }
-
-
-def _pomdp_bounds(
-    world: World, digital: DigitalAutomaton, max_product_states: int, deadline: Deadline
-) -> dict[str, object]:
-    """Storm's lower and upper bounds of the POMDP's optimum, or why there are none (its time
-    limit included)."""
-    from mitlc.check.pomdp import pomdp_bounds, unavailable_reason
-
-    try:
-        found = pomdp_bounds(
-            world, digital, max_product_states=max_product_states, deadline=deadline
-        )
-    except (ValueError, LimitError) as err:
-        return {"unavailable": str(err)}
-    if found is None:
-        return {"unavailable": unavailable_reason() or "stormpy.pomdp is not installed"}
-    keys = ("lower", "upper", "lower_complete", "upper_complete", "method")
-    return {k: found[k] for k in keys if k in found}
-
-
 @app.command(name="schema")
-@_reports_errors
+@reports_errors
 def schema_command(
     kind: Annotated[str, typer.Argument(help="Which schema: 'world'.")] = "world",
 ) -> None:
@@ -440,7 +216,7 @@ def schema_command(
         raise UsageError(f"mitlc: unknown schema {kind!r}; the one schema is 'world'")
     from mitlc.worlds import world_json_schema
 
-    typer.echo(_json_dumps(world_json_schema()))
+    typer.echo(json_dumps(world_json_schema()))
 
 
 def _version(value: bool) -> None:
@@ -459,7 +235,8 @@ def _main(
     """Compile, check and learn time-bounded robot tasks written in MITL."""
 
 
-register_learning(app, _reports_errors)
+register_checking(app, reports_errors)
+register_learning(app, reports_errors)
 
 
 def main() -> None:

@@ -157,7 +157,7 @@ def train_command(
     directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"
     formula = None
     if spec is not None:
-        from mitlc.cli import load_formula
+        from mitlc.cli_common import load_formula
         from mitlc.syntax import to_text
 
         formula = to_text(load_formula(spec, None))

@@ -1,0 +1,92 @@
+"""What every ``mitlc`` command shares: the spec arguments, the limit options, and the wrapper
+that turns mitlc's typed errors into one message and exit status 1 (never a traceback)."""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable
+from typing import Annotated, Any, ParamSpec, TypeVar
+
+import typer
+
+from mitlc.errors import MitlcError
+from mitlc.limits import CLI_HOW, Deadline
+from mitlc.syntax import Formula, parse, read_spec
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+SpecArg = Annotated[
+    str | None,
+    typer.Argument(
+        help="A spec file holding one MITL formula, or '-' for standard input.",
+        show_default=False,
+    ),
+]
+ExprOpt = Annotated[
+    str | None,
+    typer.Option("--expr", "-e", help="A formula given on the command line instead of SPEC."),
+]
+
+
+class UsageError(MitlcError):
+    """The command line names no spec, or two."""
+
+
+def reports_errors(command: Callable[P, R]) -> Callable[P, R]:
+    """Print mitlc's errors (and unreadable files) as a message, exit 1, never a traceback."""
+
+    @functools.wraps(command)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return command(*args, **kwargs)
+        except MitlcError as err:
+            typer.echo(err.render(), err=True)
+            raise typer.Exit(1) from None
+        except OSError as err:
+            name = f"{err.filename}: " if err.filename is not None else ""
+            typer.echo(f"mitlc: {name}{err.strerror or err}", err=True)
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
+def load_formula(spec: str | None, expr: str | None) -> Formula:
+    """The formula named on the command line: a file, standard input ('-'), or ``-e``."""
+    if (spec is None) == (expr is None):
+        raise UsageError("mitlc: give one formula: a SPEC file (or '-'), or -e FORMULA")
+    if expr is not None:
+        return parse(expr, "<expr>")
+    assert spec is not None
+    if spec == "-":
+        return parse(read_spec(sys.stdin.buffer, "<stdin>"), "<stdin>")
+    return parse(read_spec(spec), spec)
+
+
+def json_dumps(data: Any) -> str:
+    """Canonical, readable JSON (sorted keys, Unicode kept)."""
+    return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False)
+
+
+MaxStatesOpt = Annotated[
+    int,
+    typer.Option(
+        "--max-states", min=1, help="Stop a translation that grows past this many states."
+    ),
+]
+TimeLimitOpt = Annotated[
+    float,
+    typer.Option(
+        "--time-limit",
+        min=0,
+        metavar="SECONDS",
+        help="Stop the command after this many seconds (0: no limit).",
+    ),
+]
+
+
+def command_deadline(seconds: float, command: str) -> Deadline:
+    """The time limit of one command (``--time-limit``)."""
+    return Deadline(seconds, f"mitlc {command}", CLI_HOW)
