@@ -18,14 +18,13 @@ from mitlc.cli_common import (
     json_dumps,
     load_formula,
 )
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
-from mitlc.product.explicit import DEFAULT_MAX_PRODUCT_STATES
+from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.syntax import parse, to_text
-from mitlc.worlds.model import World
 
 if TYPE_CHECKING:
     from mitlc.check.observed import ObservedBound
     from mitlc.product.explicit import Product
+    from mitlc.worlds.model import World
 
 
 def check_command(

@@ -13,9 +13,8 @@ from typing import Annotated, Any
 import typer
 
 from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
-from mitlc.learn.run import CONFIG, RunError, read_config
+from mitlc.learn.rundir import RunError
 from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline
-from mitlc.worlds import read_world_file
 
 RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mitlc train).")]
 
@@ -36,6 +35,8 @@ def _overrides(
 
 def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, str]:
     """The run's settings and the world's name."""
+    from mitlc.worlds import read_world_file
+
     raw = read_world_file(world_file)
     config = resolve(
         raw.training, overrides, discount=raw.discount, pomdp=raw.observation is not None
@@ -143,7 +144,7 @@ def train_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
-    from mitlc.learn.run import train
+    from mitlc.learn.run import CONFIG, read_config, train
 
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
@@ -290,6 +291,7 @@ def plot_command(
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
     from mitlc.learn.plot import plot_run
+    from mitlc.learn.run import read_config
 
     read_config(run)
     for path in plot_run(run, out, trajectories=trajectories, seed=seed):

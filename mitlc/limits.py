@@ -22,6 +22,12 @@ A minute: the paper's checks take under a second, the whole check of a 100x100 g
 20 s and ``F[0,100000] a`` compiles in a few seconds, while a runaway translation (``F[0,1000]
 G[0,1000] a``, about a million states of hundreds of atoms each) holds 3 GB after a minute."""
 
+DEFAULT_MAX_PRODUCT_STATES = 8_000_000
+"""The largest product (its bound ``S * Q`` on the states) built by default
+(``--max-product-states``): a product of a million reachable states takes about 2 GB to check,
+so the default keeps a check within about 16 GB; the 100x100 grid of ``make bench-check``
+(bound 5.0 million, 3.0 million reachable) is within it."""
+
 LIBRARY_HOW = "the time_limit argument (seconds; None for none)"
 """How a library caller raises a time limit (the command line says ``--time-limit``)."""
 

@@ -8,8 +8,8 @@ from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.solve import Solution, pmax, pmax_horizon
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
-from mitlc.product.explicit import DEFAULT_MAX_PRODUCT_STATES, Product, build_product
+from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
+from mitlc.product.explicit import Product, build_product
 from mitlc.worlds.model import World
 
 

@@ -45,9 +45,8 @@ from typing import Any
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
 from mitlc.check.solve import pmax
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.explicit import (
-    DEFAULT_MAX_PRODUCT_STATES,
     SATISFIED,
     VIOLATED,
     Product,

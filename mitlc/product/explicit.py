@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
 
 VIOLATED, SATISFIED = 0, 1
@@ -66,12 +66,6 @@ class Product:
         """Non-zero transition probabilities."""
         return len(self.transitions.targets)
 
-
-DEFAULT_MAX_PRODUCT_STATES = 8_000_000
-"""The largest product (its bound ``S * Q`` on the states) built by default
-(``--max-product-states``): a product of a million reachable states takes about 2 GB to check,
-so the default keeps a check within about 16 GB; the 100x100 grid of ``make bench-check``
-(bound 5.0 million, 3.0 million reachable) is within it."""
 
 TRANSITIONS_PER_STATE = 20
 """The bound on transitions may be this many times ``max_product_states`` (a grid world has at
