@@ -6,8 +6,23 @@ from pathlib import Path
 
 import pytest
 
+from mitlc.learn.config import DRQNConfig
+
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = ROOT / "tests" / "golden"
+
+TINY_DRQN = DRQNConfig(
+    num_envs=4,
+    hidden=16,
+    batch_size=4,
+    sequence_length=6,
+    burn_in=3,
+    replay_size=200,
+    warmup_sequences=4,
+    train_every=2,
+    target_update=10,
+)
+"""A recurrent DQN small enough for a test to train in a second (the deep tests share it)."""
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 from mitlc.cli import app
 from mitlc.errors import MitlcError
 from mitlc.learn import checkpoint
-from mitlc.learn.config import ConfigError, DQNConfig, DRQNConfig, TrainConfig, resolve
+from mitlc.learn.config import ConfigError, DQNConfig, TrainConfig, resolve
 from mitlc.learn.evaluate import evaluate
 from mitlc.learn.plot import plot_run, read_metrics
 from mitlc.learn.run import (
@@ -43,22 +43,12 @@ from mitlc.learn.run import (
 from mitlc.learn.rundir import locked
 from mitlc.learn.state import restore
 from mitlc.learn.vec import VecProduct
-from tests.conftest import ROOT
+from tests.conftest import ROOT, TINY_DRQN
 
 CASE1 = ROOT / "specs" / "paper" / "case1.yaml"
 CASE3 = ROOT / "specs" / "paper" / "case3-office.yaml"
 DQN = DQNConfig(num_envs=4, hidden=16, batch_size=16, warmup_steps=32, target_update=10)
-DRQN = DRQNConfig(
-    num_envs=4,
-    hidden=16,
-    batch_size=4,
-    sequence_length=6,
-    burn_in=3,
-    replay_size=200,
-    warmup_sequences=4,
-    train_every=2,
-    target_update=10,
-)
+DRQN = TINY_DRQN
 WORLDS = {"q": CASE1, "dqn": CASE1, "drqn": CASE3}
 EPISODES = {"q": 2000, "dqn": 40, "drqn": 20}
 

@@ -17,7 +17,7 @@ torch = pytest.importorskip("torch")
 
 from mitlc.learn import checkpoint  # noqa: E402
 from mitlc.learn.base import Learner, Policy  # noqa: E402
-from mitlc.learn.config import DQNConfig, DRQNConfig, TrainConfig  # noqa: E402
+from mitlc.learn.config import DQNConfig, TrainConfig  # noqa: E402
 from mitlc.learn.dqn import DQNLearner, DQNPolicy  # noqa: E402
 from mitlc.learn.drqn import DRQNLearner  # noqa: E402
 from mitlc.learn.evaluate import evaluate  # noqa: E402
@@ -25,6 +25,7 @@ from mitlc.learn.exact import policy_success  # noqa: E402
 from mitlc.learn.nets import Encoder  # noqa: E402
 from mitlc.learn.run import RunError, Setting, load_learner, make_learner, prepare, train  # noqa: E402
 from mitlc.learn.vec import Tables, VecProduct  # noqa: E402
+from tests.conftest import TINY_DRQN  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE1 = ROOT / "specs" / "paper" / "case1.yaml"
@@ -33,17 +34,6 @@ CASE3 = ROOT / "specs" / "paper" / "case3-office.yaml"
 
 TINY_DQN = DQNConfig(
     num_envs=4, hidden=16, batch_size=16, warmup_steps=32, target_update=10, initial_value=50.0
-)
-TINY_DRQN = DRQNConfig(
-    num_envs=4,
-    hidden=16,
-    batch_size=4,
-    sequence_length=6,
-    burn_in=3,
-    replay_size=200,
-    warmup_sequences=4,
-    train_every=2,
-    target_update=10,
 )
 
 
