@@ -22,7 +22,7 @@ from mitlc.learn.run import RunError, prepare, train
 from mitlc.learn.vec import Step, VecProduct, tables
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse, to_text
-from mitlc.worlds import Sparse
+from mitlc.worlds import Sparse, load_world
 from mitlc.worlds.model import IntArray
 from tests.conftest import ROOT
 from tests.test_check import formulas, random_world
@@ -341,3 +341,50 @@ def test_learners_of_the_true_cell_refuse_a_pomdp(tmp_path: Path) -> None:
     for algo in ("q", "dqn"):
         with pytest.raises(RunError, match=f"{algo} learns on the true cell.*use drqn"):
             train(case2, config(Q_SMALL, algo=algo), tmp_path / algo)
+
+
+CORRIDOR = """
+name: corridor
+grid: {rows: 1, cols: 3}
+labels: {a: [[0, 1]], b: [[0, 2]]}
+start: [0, 0]
+actions: [right, stay]
+motion: {intended: 1.0, sideways: 0.0}
+spec: {formula: "G F a & G !b"}
+reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
+horizon: 10
+discount: 0.9
+"""
+
+
+@pytest.mark.parametrize(("stay_at_a", "expected"), [(False, 0.0), (True, 1.0)])
+def test_a_violation_after_a_completed_round_is_a_failure(
+    tmp_path: Path, stay_at_a: bool, expected: float
+) -> None:
+    """The corridor start, a, b with `G F a & G !b`: "always right" completes a round at `a`,
+    then reaches `b` (violated) within the horizon: a failure for the exact evaluation, the
+    optimum of the restricted product and the simulator alike (the exact evaluation said 1.0).
+    Staying at `a` succeeds in all three."""
+    path = tmp_path / "corridor.yaml"
+    path.write_text(CORRIDOR)
+    world = load_world(path)
+    product = build_product(world, translate(parse(world.spec)))
+    t = tables(product, world)
+    right, stay = 0, 1
+    at_a = product.world_state == 1
+    action = np.where(at_a & stay_at_a, stay, right)  # per product state
+    chosen = np.array(
+        [t.choice[x, action[x]] if product.world_state[x] >= 0 else product.choice_ptr[x]
+         for x in range(product.num_states)]
+    )
+    choices = np.tile(np.where(product.world_state >= 0, chosen, -1), (1 << product.num_sets, 1))
+    assert product.num_sets == 1
+    assert policy_success(product, choices, world.horizon) == expected
+    assert pmax_horizon(restrict(product, chosen), world.horizon, keep_history=False)[0] == expected
+    env = VecProduct(t, 64, np.random.default_rng(0))
+    ended = succeeded = 0
+    while ended < 256:
+        step = env.step(np.where(t.world_state[env.state] >= 0, action[env.state], 0))
+        ended += int(step.done.sum())
+        succeeded += int(step.success[step.done].sum())
+    assert succeeded / ended == expected

@@ -1,8 +1,9 @@
 """The exact success probability of a memoryless policy on an MDP's product: the Markov chain
 it induces, solved by backward induction over the horizon.
 
-The event is the episode's success (see :mod:`mitlc.learn.vec`): never *violated*, and
-*satisfied* or a completed round of all acceptance sets within ``horizon`` world actions. The
+The event is the episode's success (see :mod:`mitlc.learn.vec`): never *violated* within
+``horizon`` world actions, and *satisfied* or a completed round of all acceptance sets within
+them (a violation after a completed round is a failure). The
 policy may depend on the frontier mask, so the values are indexed ``[mask, product state]``
 like those of :func:`mitlc.check.solve.pmax_horizon` (its optimum is the same recursion with a
 maximum over the choices); epsilon jumps take no step.
@@ -51,18 +52,25 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
             for a in np.unique(after).tolist()
         ]
         plans.append((groups, states[~walk], jump_target[picked[~walk]]))
-    values = _ends(all_sets, n)
-    values[all_sets, live] = 1.0  # with no sets: not violated by the horizon is a success
-    values = _jump(values, plans)
+    # pending[mask, x]: success from x with no round completed yet; done[mask, x]: a round was
+    # completed, so success is not reaching *violated* by the horizon. A round that completes
+    # empties the frontier (as in the simulator): the policy then reads mask 0 again.
+    pending, done = _ends(all_sets, n), _ends(all_sets, n)
+    done[:, live] = 1.0
+    if not product.num_sets:  # no sets: not violated by the horizon is the success
+        pending[:, live] = 1.0
+    pending, done = _jump(pending, plans), _jump(done, plans)
     for _ in range(horizon):
-        step = _ends(all_sets, n)
-        if product.num_sets:
-            step[all_sets, live] = 1.0
+        next_pending, next_done = _ends(all_sets, n), _ends(all_sets, n)
         for mask, (groups, _, _) in enumerate(plans):
             for states, rows, after in groups:
-                step[mask, states] = rows @ values[after]
-        values = _jump(step, plans)
-    return float(values[0, product.initial])
+                if product.num_sets and after == all_sets:
+                    next_pending[mask, states] = next_done[mask, states] = rows @ done[0]
+                else:
+                    next_pending[mask, states] = rows @ pending[after]
+                    next_done[mask, states] = rows @ done[after]
+        pending, done = _jump(next_pending, plans), _jump(next_done, plans)
+    return float(pending[0, product.initial])
 
 
 def _ends(all_sets: int, n: int) -> FloatArray:
