@@ -214,3 +214,36 @@ def test_pmax_horizon_without_history_gives_the_same_value() -> None:
         last, kept = pmax_horizon(product, 6, keep_history=False)
         assert full == last and len(history) == 7 and len(kept) == 1
         assert np.array_equal(history[-1], kept[0])
+
+
+TWO_LABELS = """
+name: two-labels
+grid: {rows: 1, cols: 3}
+labels: {a: [[0, 0]], b: [[0, 2]]}
+start: [0, 0]
+actions: [left, right, stay]
+motion: {intended: 0.8, sideways: 0.1}
+spec: {formula: "F a & F b"}
+reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
+horizon: 10
+discount: 0.9
+"""
+
+
+def test_check_maps_the_worlds_propositions_by_name(tmp_path: Path) -> None:
+    """The world labels (a, b) and starts on a; the task G !b names b only. Read as the
+    automaton's letters without the names, the start's {a} was {b}: 0.0 instead of 1.0."""
+    from mitlc.check import check
+    from mitlc.product.explicit import LabelError
+    from mitlc.worlds import load_world
+
+    path = tmp_path / "two.yaml"
+    path.write_text(TWO_LABELS)
+    world = load_world(path)
+    assert world.propositions == ("a", "b")
+    report = check(world, translate(parse("G !b")))
+    assert report.pmax == pytest.approx(1.0) and report.pmax_horizon == pytest.approx(1.0)
+    assert check(world, translate(parse("G !a"))).pmax == 0.0  # the start is labelled a
+    assert check(world, translate(parse("!a U b"))).pmax == 0.0
+    with pytest.raises(LabelError, match=r"\['c'\] are not among the world's \['a', 'b'\]"):
+        check(world, translate(parse("F c")))

@@ -44,6 +44,7 @@ import numpy as np
 from gymnasium import spaces
 
 from mitlc.automata import DigitalAutomaton, translate
+from mitlc.product.explicit import automaton_letters
 from mitlc.syntax import atoms, parse
 from mitlc.worlds import Sparse, World, load_world, read_world_file
 from mitlc.worlds.model import BoolArray
@@ -84,7 +85,7 @@ class ProductEnv(gym.Env[Obs, np.int64]):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} is not one of 'ansi' or None")
         self.world, self.automaton, self.render_mode = world, automaton, render_mode
-        self._letters = _letters(world, automaton.propositions)
+        self._letters = automaton_letters(world, automaton.propositions).tolist()
         self._jumps = [automaton.jumps_from(q) for q in range(len(automaton.states))]
         self.max_jumps = max(map(len, self._jumps), default=0)
         """The largest number of epsilon jumps leaving an automaton state."""
@@ -233,21 +234,6 @@ class ProductEnv(gym.Env[Obs, np.int64]):
             "step": self._step,
             "invalid_action": invalid,
         }
-
-
-def _letters(world: World, propositions: Sequence[str]) -> list[int]:
-    """Per world state, its letter over the automaton's ``propositions``."""
-    index = {p: i for i, p in enumerate(world.propositions)}
-    missing = [p for p in propositions if p not in index]
-    if missing:
-        raise ValueError(
-            f"the automaton's propositions {missing} are not among the world's "
-            f"{list(world.propositions)}"
-        )
-    return [
-        sum(1 << i for i, p in enumerate(propositions) if letter >> index[p] & 1)
-        for letter in world.letters.tolist()
-    ]
 
 
 def relabel(world: World, labels: Mapping[str, Sequence[Sequence[int]]], spec: str) -> World:

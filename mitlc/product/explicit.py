@@ -1,7 +1,9 @@
 """The explicit product of a world and a digital automaton: ``build_product(world, automaton)``.
 
 A product state ``(s, q)`` is the world in state ``s`` with the automaton in state ``q`` about
-to read the letter of ``s`` (position 0 is the start cell, before the first action). A world
+to read the letter of ``s`` (position 0 is the start cell, before the first action); ``L(s)``
+is that letter over the automaton's propositions, mapped by name from the world's
+(:func:`automaton_letters`). A world
 action ``a`` moves to ``(s', delta[q][L(s)])`` with the world's probability, in the acceptance
 sets ``marks[q][L(s)]``; an epsilon jump ``q -> t`` of the automaton is an extra choice that
 moves to ``(s, t)`` with probability 1 and no marks. Every product state whose automaton state
@@ -20,11 +22,13 @@ million cells.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
+from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
 
@@ -74,6 +78,28 @@ most 5 actions of at most 3 successors each: 15 per state, jumps aside)."""
 
 class ProductSizeError(LimitError):
     """The product would be larger than its limit (``max_product_states``)."""
+
+
+class LabelError(MitlcError, ValueError):
+    """The task names a proposition that the world does not label."""
+
+
+def automaton_letters(world: World, propositions: Sequence[str]) -> IntArray:
+    """Per world state, its letter over the automaton's ``propositions`` (bit ``j`` for
+    ``propositions[j]``), read by name from the world's letters: the world may label more
+    propositions, or list them in another order. A proposition the world does not have is a
+    :class:`LabelError`."""
+    index = {p: i for i, p in enumerate(world.propositions)}
+    missing = [p for p in propositions if p not in index]
+    if missing:
+        raise LabelError(
+            f"the task's propositions {missing} are not among the world's "
+            f"{list(world.propositions)}"
+        )
+    letters = np.zeros(len(world.letters), dtype=np.int64)
+    for j, p in enumerate(propositions):
+        letters |= ((world.letters >> index[p]) & 1) << j
+    return letters
 
 
 def estimate(world: World, automaton: DigitalAutomaton) -> tuple[int, int]:
@@ -127,6 +153,7 @@ class _Builder:
 
     def __init__(self, world: World, automaton: DigitalAutomaton, deadline: Deadline) -> None:
         self.world, self.deadline = world, deadline
+        self.letters = automaton_letters(world, automaton.propositions)
         self.num_q = len(automaton.states)
         self.delta = np.asarray(automaton.delta, dtype=np.int64)
         self.marks = np.asarray(automaton.marks, dtype=np.int64)
@@ -176,7 +203,7 @@ class _Builder:
         while len(frontier):
             self.deadline.check_now()
             s, q = codes // num_q, codes % num_q
-            letter = world.letters[s]
+            letter = self.letters[s]
             q_next, marks = self.delta[q, letter], self.marks[q, letter]
             batches = []
             for a in range(world.num_actions):
