@@ -194,7 +194,7 @@ def test_acceptance_frontier_pays_each_set_once_a_round() -> None:
     assert env.frontier == 0b10
 
 
-def test_jumps_take_no_time_and_invalid_jumps_are_no_ops() -> None:
+def test_jumps_take_no_time_and_invalid_jumps_cost_a_step() -> None:
     env = ProductEnv(corridor({"a": [2], "b": [1]}), one_state(1, (), epsilon=True))
     jump = env.world.num_actions
     env.reset(seed=0)
@@ -205,9 +205,9 @@ def test_jumps_take_no_time_and_invalid_jumps_are_no_ops() -> None:
     assert env.action_masks().tolist() == [True, True, True, False]
     obs, reward, _, _, info = env.step(jump)
     assert obs == {"world": 0, "automaton": 1} and reward == 0.0 and info["invalid_action"]
-    assert env.state_index() == 0 * 3 + 1
+    assert env.state_index() == 0 * 3 + 1 and info["step"] == 1
     _, reward, _, _, info = env.step(STAY)  # reads !a in the accepting state: set 0
-    assert (reward, info["rounds"], info["step"], info["success"]) == (10.0, 1, 1, True)
+    assert (reward, info["rounds"], info["step"], info["success"]) == (10.0, 1, 2, True)
     with pytest.raises(ValueError, match="not in"):
         env.step(jump + 1)
 
@@ -289,3 +289,21 @@ def test_optimal_policy_succeeds_as_checked_with_jumps() -> None:
     exact, empirical, _ = gate(env, 5_000)
     assert 0.5 < exact < 0.95
     assert_agrees(exact, empirical, 5_000)
+
+
+def test_an_agent_that_ignores_the_mask_ends_by_the_horizon() -> None:
+    """An invalid jump used to be a zero-time no-op that was never truncated: an agent that
+    ignores the mask (SB3's DQN does) looped forever; 10,000 of them left the step counter
+    at 1. Now each costs a step, so the episode is truncated at the horizon."""
+    env = ProductEnv(corridor({"a": [2], "b": [1]}), one_state(1, (), epsilon=True))
+    jump = env.world.num_actions
+    env.reset(seed=0)
+    env.step(jump)  # the one valid jump; from here on it is invalid
+    taken, truncated = 0, False
+    while not truncated and taken < 10_000:
+        _, _, terminated, truncated, info = env.step(jump)
+        assert info["invalid_action"] and not terminated
+        taken += 1
+    assert truncated and taken == env.world.horizon and env.steps == env.world.horizon
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(jump)

@@ -13,8 +13,10 @@ about to read the letter of ``s`` (position 0 is the start cell, before the firs
   ``num_actions + j`` takes the ``j``-th epsilon jump of ``q`` (jumps sorted by target): the
   automaton moves, the world does not, no time passes (the step counter and the horizon are
   untouched, as in :func:`mitlc.check.solve.pmax_horizon`) and the observation is unchanged.
-  A jump that ``q`` does not have is *invalid*: a no-op with reward 0 that takes no time and
-  reports ``info["invalid_action"] = True``; :meth:`ProductEnv.action_masks` gives the valid
+  A jump that ``q`` does not have is *invalid*: world and automaton stay as they are, the
+  reward is 0, ``info["invalid_action"]`` is True, and it costs a step of the episode's
+  budget (the step counter counts it towards the horizon), so an agent that ignores the mask
+  still ends every episode by the horizon; :meth:`ProductEnv.action_masks` gives the valid
   actions (the convention of sb3-contrib's ``MaskablePPO``).
 * **Reward**: ``rewards.accept`` for each acceptance set first seen in the current round of the
   generalized Büchi condition (a frontier: once every set has been seen the round is complete
@@ -166,8 +168,11 @@ class ProductEnv(gym.Env[Obs, np.int64]):
         rewards, marks = self.world.rewards, 0
         if a >= num_actions:
             jumps = self._jumps[self._q]
-            if a - num_actions >= len(jumps):
-                return self._obs(), 0.0, False, False, self._info(0, invalid=True)
+            if a - num_actions >= len(jumps):  # invalid: nothing moves, but a step is spent
+                self._step += 1
+                truncated = self._step >= self.world.horizon
+                self._done = truncated
+                return self._obs(), 0.0, False, truncated, self._info(0, invalid=True)
             self._q, reward = jumps[a - num_actions], 0.0
         else:
             letter = self._letters[self._s]
