@@ -149,3 +149,16 @@ def test_train_set_up_stops_at_its_time_limit(tmp_path: Path) -> None:
     assert lines[0].startswith("mitlc train stopped at the time limit of 1e-09 s (during ")
     assert lines[0].endswith("raise it with --time-limit SECONDS (0 for none)")
     assert not (out / "config.json").exists()
+
+
+def test_train_with_a_spec_naming_an_unlabelled_proposition_is_one_line(tmp_path: Path) -> None:
+    """`train --spec` with a proposition that labels no cell printed relabel's ValueError as a
+    traceback (issue 12, bug 3); `check --spec` reported it properly."""
+    spec = tmp_path / "zzz.mitl"
+    spec.write_text("F zzz\n")
+    out = tmp_path / "run"
+    result = runner.invoke(app, ["train", CASE1, "--spec", str(spec), "--out", str(out)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.endswith("propositions ['zzz'] label no cell (labels: ['a', 'b'])")
+    assert not (out / "config.json").exists()
