@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
+from mitlc.learn.config import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.learn.rundir import RunError
 from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline
 
@@ -99,7 +100,7 @@ def train_command(
     algo: Annotated[
         str | None, typer.Option("--algo", help=f"One of {', '.join(ALGORITHMS)}.")
     ] = None,
-    seed: Annotated[int | None, typer.Option("--seed", help="The run's seed.")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", min=0, help="The run's seed.")] = None,
     episodes: Annotated[
         int | None,
         typer.Option(
@@ -264,9 +265,13 @@ def _print_evaluation(
 def eval_command(
     run: RunArg,
     episodes: Annotated[
-        int | None, typer.Option("--episodes", help="Episodes (default: the run's setting).")
+        int | None,
+        typer.Option(
+            "--episodes",
+            help=f"Episodes (default: the run's setting), all run at once: 1 to {MAX_EVAL:,}.",
+        ),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="The evaluation's seed.")] = 12345,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="The evaluation's seed.")] = 12345,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
     pomdp_bounds: Annotated[
         bool,
@@ -276,6 +281,8 @@ def eval_command(
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
     if episodes is not None and episodes <= 0:
         raise RunError("--episodes must be positive")
+    if episodes is not None and episodes > MAX_EVAL:
+        raise RunError(f"--episodes: at most {MAX_EVAL:,} (they run at once), got {episodes:,}")
     _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds)
 
 
@@ -285,9 +292,9 @@ def plot_command(
         Path | None, typer.Option("--out", help="Where to write the PNGs (default: RUN).")
     ] = None,
     trajectories: Annotated[
-        int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
+        int, typer.Option("--trajectories", min=0, max=100, help="Greedy trajectories to draw.")
     ] = 5,
-    seed: Annotated[int, typer.Option("--seed", help="The trajectories' seed.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="The trajectories' seed.")] = 0,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
     from mitlc.learn.plot import plot_run

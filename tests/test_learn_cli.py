@@ -162,3 +162,23 @@ def test_train_with_a_spec_naming_an_unlabelled_proposition_is_one_line(tmp_path
     (line,) = result.output.strip().splitlines()
     assert line.endswith("propositions ['zzz'] label no cell (labels: ['a', 'b'])")
     assert not (out / "config.json").exists()
+
+
+def test_out_of_range_numbers_are_refused_without_a_traceback(tmp_path: Path) -> None:
+    """Found by trying: a negative seed, NaN, and episode or trajectory counts far past memory
+    raised numpy's errors (or drew for ever)."""
+    out = tmp_path / "run"
+    trained = runner.invoke(app, ["train", CASE1, "--out", str(out), *SMALL, "--no-eval"])
+    assert trained.exit_code == 0
+    for args, message in [
+        (["train", CASE1, "--out", str(tmp_path / "a"), "--set", "seed=-1"], "training.seed"),
+        (["train", CASE1, "--out", str(tmp_path / "b"), "--set", "q.alpha=nan"], "finite"),
+        (["train", CASE1, "--out", str(tmp_path / "c"), "--set", "eval_episodes=10000000"], "most"),
+        (["train", CASE1, "--out", str(tmp_path / "d"), "--seed", "-1"], "--seed"),
+        (["eval", str(out), "--episodes", "1000000000000"], "--episodes"),
+        (["eval", str(out), "--episodes", "99999999999999999999999"], "--episodes"),
+        (["plot", str(out), "--trajectories", "1000000000"], "--trajectories"),
+    ]:
+        result = runner.invoke(app, args)
+        assert result.exit_code in (1, 2), args
+        assert "Traceback" not in result.output and message in result.output, args

@@ -20,6 +20,7 @@ checks names and types and fills the rest in.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -221,6 +222,10 @@ def _check_ranges(config: object, path: str) -> None:
         where = f"{path}.{f.name}" if path else f.name
         if isinstance(value, bool) or not isinstance(value, int | float):
             continue
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"{where}: expected a finite number, got {value!r}")
+        if f.name == "seed" and not 0 <= value < 2**63:
+            raise ConfigError(f"{where}: expected an integer from 0 to 2^63 - 1, got {value!r}")
         if f.name.startswith(("gamma", "epsilon")) and not 0.0 <= value <= 1.0:
             raise ConfigError(f"{where}: expected a value in [0, 1], got {value!r}")
         if f.name in _POSITIVE and value <= 0:
@@ -248,8 +253,12 @@ _POSITIVE = {
 }
 
 
-_AT_MOST = {"layers": 100}
-"""Bounds where a bigger value would only make the learner's construction loop for ages."""
+MAX_EVAL_EPISODES = 1_000_000
+"""The most episodes an evaluation runs (all at once, so memory grows with them)."""
+
+_AT_MOST = {"layers": 100, "eval_episodes": MAX_EVAL_EPISODES}
+"""Bounds where a bigger value would only make the learner's construction loop for ages, or
+an evaluation hold more episodes at once than memory does."""
 
 
 def _nest(overrides: Mapping[str, Any]) -> dict[str, Any]:
