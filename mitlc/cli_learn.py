@@ -224,11 +224,19 @@ def _flatten(config: TrainConfig) -> dict[str, Any]:
 
 
 def _print_evaluation(
-    directory: Path, episodes: int | None, seed: int, *, as_json: bool, bounds: bool
+    directory: Path,
+    episodes: int | None,
+    seed: int,
+    *,
+    as_json: bool,
+    bounds: bool,
+    deadline: Deadline | None = None,
 ) -> None:
     from mitlc.learn.evaluate import evaluate
 
-    report = evaluate(directory, episodes=episodes, seed=seed, pomdp_bounds=bounds)
+    report = evaluate(
+        directory, episodes=episodes, seed=seed, pomdp_bounds=bounds, deadline=deadline
+    )
     data = report.summary()
     if as_json:
         typer.echo(json.dumps(data, indent=2, sort_keys=True))
@@ -277,13 +285,24 @@ def eval_command(
         bool,
         typer.Option("--pomdp-bounds", help="For a POMDP, add Storm's belief bounds (slow)."),
     ] = False,
+    time_limit: Annotated[
+        float,
+        typer.Option(
+            "--time-limit",
+            min=0,
+            metavar="SECONDS",
+            help="Stop the set-up and the exact figures after this many seconds (0: no limit); "
+            "POMDP bounds that run out of time are left out.",
+        ),
+    ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
     if episodes is not None and episodes <= 0:
         raise RunError("--episodes must be positive")
     if episodes is not None and episodes > MAX_EVAL:
         raise RunError(f"--episodes: at most {MAX_EVAL:,} (they run at once), got {episodes:,}")
-    _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds)
+    deadline = Deadline(time_limit, "mitlc eval", CLI_HOW)
+    _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds, deadline=deadline)
 
 
 def plot_command(

@@ -182,3 +182,14 @@ def test_out_of_range_numbers_are_refused_without_a_traceback(tmp_path: Path) ->
         result = runner.invoke(app, args)
         assert result.exit_code in (1, 2), args
         assert "Traceback" not in result.output and message in result.output, args
+
+
+def test_eval_stops_at_its_time_limit(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    trained = runner.invoke(app, ["train", CASE1, "--out", str(out), *SMALL, "--no-eval"])
+    assert trained.exit_code == 0
+    result = runner.invoke(app, ["eval", str(out), "--time-limit", "1e-9"])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith("mitlc eval stopped at the time limit of 1e-09 s (during ")
+    assert line.endswith("raise it with --time-limit SECONDS (0 for none)")

@@ -26,6 +26,7 @@ from mitlc.learn.base import Policy
 from mitlc.learn.exact import policy_success
 from mitlc.learn.run import Setting, load_learner
 from mitlc.learn.vec import VecProduct
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import IntArray
 
 Z95 = 1.959963984540054
@@ -132,17 +133,23 @@ def evaluate(
     episodes: int | None = None,
     seed: int = 12345,
     pomdp_bounds: bool = False,
+    deadline: Deadline | None = None,
 ) -> Evaluation:
     """Evaluate the run in ``directory`` (its last checkpoint); ``episodes`` defaults to the
     run's ``eval_episodes``. ``pomdp_bounds`` asks Storm for belief bounds (slow on big
-    worlds; needs stormpy)."""
+    worlds; needs stormpy). The set-up and the exact figures stop at ``deadline`` (by default
+    :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds); the POMDP bounds are left out when the
+    time runs out during them."""
     start = time.perf_counter()
-    setting, learner = load_learner(Path(directory))
+    clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "evaluation")
+    setting, learner = load_learner(Path(directory), deadline=clock)
     count = episodes if episodes is not None else setting.config.eval_episodes
     policy = learner.policy()
     successes, mean_return = monte_carlo(setting, policy, count, seed)
     horizon = setting.world.horizon
-    optimum, _ = pmax_horizon(setting.product, horizon, keep_history=False)
+    optimum, _ = pmax_horizon(
+        setting.product, horizon, keep_history=False, deadline=clock.at("pmax_horizon")
+    )
     exact = None
     if not setting.world.is_pomdp and isinstance(policy, Memoryless):
         exact = policy_success(setting.product, policy.choices(), horizon)
@@ -151,13 +158,20 @@ def evaluate(
         from mitlc.check.observed import ObservedBoundError, observed_bound
 
         try:
-            lower = observed_bound(setting.world, setting.product, horizon=horizon).value
-        except ObservedBoundError:
+            stage = clock.at("the observation-based bound")
+            found = observed_bound(setting.world, setting.product, horizon=horizon, deadline=stage)
+            lower = found.value
+        except (ObservedBoundError, LimitError):
             lower = None
     if setting.world.is_pomdp and pomdp_bounds:
         from mitlc.check.pomdp import pomdp_bounds as storm_bounds
 
-        bounds = storm_bounds(setting.world, setting.automaton, horizon_success=True)
+        try:
+            bounds = storm_bounds(
+                setting.world, setting.automaton, horizon_success=True, deadline=clock
+            )
+        except LimitError:
+            bounds = None
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,

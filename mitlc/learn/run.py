@@ -45,7 +45,7 @@ from mitlc.learn.rundir import RunError as RunError
 from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
 from mitlc.learn.vec import Tables, VecProduct, tables
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.env import relabel
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
@@ -171,24 +171,29 @@ def read_config(directory: Path) -> tuple[dict[str, Any], TrainConfig]:
         raise RunError(f"{path}: train.{err}") from None
 
 
-def load_setting(directory: Path) -> Setting:
-    """The world, task and product of the run in ``directory``."""
+def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Setting:
+    """The world, task and product of the run in ``directory`` (built by ``deadline``, see
+    :func:`prepare`)."""
     data, config = read_config(directory)
     if not Path(data["world"]).is_file():  # a device would be read for ever
         raise RunError(f"{directory / CONFIG}: the run's world {data['world']} is not a file")
     try:
-        return prepare(Path(data["world"]), config, data["spec"])
+        return prepare(Path(data["world"]), config, data["spec"], deadline=deadline)
     except OSError as err:
         raise RunError(
             f"{directory / CONFIG}: the run's world {data['world']}: {err.strerror or err}"
         ) from None
+    except LimitError:  # the time or size limit, not a fault of the run's files
+        raise
     except MitlcError as err:  # the world file or the task no longer compiles
         raise RunError(f"{directory / CONFIG}: the run's world or task: {one_line(err)}") from None
 
 
-def load_learner(directory: Path) -> tuple[Setting, Learner]:
+def load_learner(
+    directory: Path, *, deadline: Deadline | None = None
+) -> tuple[Setting, Learner]:
     """The run in ``directory``: its setting, and its learner as last checkpointed."""
-    setting = load_setting(directory)
+    setting = load_setting(directory, deadline=deadline)
     _, learner_rng = _rngs(setting.config.seed)
     learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
     _restore(directory, learner, env, _Tally())
