@@ -76,15 +76,14 @@ MaxStatesOpt = Annotated[
         "--max-states", min=1, help="Stop a translation that grows past this many states."
     ),
 ]
-TimeLimitOpt = Annotated[
-    float,
-    typer.Option(
-        "--time-limit",
-        min=0,
-        metavar="SECONDS",
-        help="Stop the command after this many seconds (0: no limit).",
-    ),
-]
+def time_limit_option(
+    help: str = "Stop the command after this many seconds (0: no limit).",
+) -> Any:
+    """The ``--time-limit SECONDS`` option of a command, with what it bounds as ``help``."""
+    return typer.Option("--time-limit", min=0, metavar="SECONDS", help=help)
+
+
+TimeLimitOpt = Annotated[float, time_limit_option()]
 
 
 def command_deadline(seconds: float, command: str) -> Deadline:

@@ -12,6 +12,7 @@ from typing import Annotated, Any
 
 import typer
 
+from mitlc.cli_common import time_limit_option
 from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
 from mitlc.learn.config import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.learn.rundir import RunError
@@ -135,11 +136,8 @@ def train_command(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
     time_limit: Annotated[
         float,
-        typer.Option(
-            "--time-limit",
-            min=0,
-            metavar="SECONDS",
-            help="Stop the set-up (compiling the task, building the product) after this many "
+        time_limit_option(
+            "Stop the set-up (compiling the task, building the product) after this many "
             "seconds (0: no limit); the training itself runs its episodes (Ctrl-C stops it).",
         ),
     ] = DEFAULT_TIME_LIMIT,
@@ -287,11 +285,8 @@ def eval_command(
     ] = False,
     time_limit: Annotated[
         float,
-        typer.Option(
-            "--time-limit",
-            min=0,
-            metavar="SECONDS",
-            help="Stop the set-up and the exact figures after this many seconds (0: no limit); "
+        time_limit_option(
+            "Stop the set-up and the exact figures after this many seconds (0: no limit); "
             "POMDP bounds that run out of time are left out.",
         ),
     ] = DEFAULT_TIME_LIMIT,
