@@ -204,19 +204,28 @@ def render(path: FieldPath) -> str:
 # --- motion ----------------------------------------------------------------------------------
 
 
-def move(layout: Layout, cell: Cell, action: str, motion: Motion) -> dict[Cell, float]:
+def move(
+    layout: Layout,
+    cell: Cell,
+    action: str,
+    motion: Motion,
+    steps: Mapping[str, Cell | None] | None = None,
+) -> dict[Cell, float]:
     """The distribution of the next cell. With ``sideways``, each perpendicular way w.p.
     ``sideways``; with ``spread``, that mass split evenly over the other feasible directions.
-    Infeasible outcomes leave the robot in place; ``stay`` is certain."""
+    Infeasible outcomes leave the robot in place; ``stay`` is certain. ``steps`` may give
+    ``layout.step(cell, d)`` for every direction ``d``, computed once for all actions."""
     heading = HEADING.get(action)
     if heading is None:
         return {cell: 1.0}
-    outcomes: list[tuple[Cell | None, float]] = [(layout.step(cell, heading), motion.intended)]
+    if steps is None:
+        steps = {d: layout.step(cell, d) for d in DIRECTIONS}
+    outcomes: list[tuple[Cell | None, float]] = [(steps[heading], motion.intended)]
     if motion.sideways is not None:
-        outcomes += [(layout.step(cell, d), motion.sideways) for d in PERPENDICULAR[heading]]
+        outcomes += [(steps[d], motion.sideways) for d in PERPENDICULAR[heading]]
     else:
         spread = motion.spread or 0.0
-        others = [layout.step(cell, d) for d in DIRECTIONS if d != heading]
+        others = [steps[d] for d in DIRECTIONS if d != heading]
         feasible = [target for target in others if target is not None]
         share = [(t, spread / len(feasible)) for t in feasible]
         outcomes += share if feasible else [(None, spread)]
@@ -232,11 +241,12 @@ def transitions(layout: Layout, actions: Iterable[str], motion: Motion) -> Spars
     cells = layout.cells()
     index = {cell: s for s, cell in enumerate(cells)}
     chosen = tuple(actions)
-    rows = [
-        {index[t]: p for t, p in move(layout, cell, a, motion).items()}
-        for cell in cells
-        for a in chosen
-    ]
+    rows: list[dict[int, float]] = []
+    for cell in cells:
+        steps = {d: layout.step(cell, d) for d in DIRECTIONS}  # once for every action
+        rows.extend(
+            {index[t]: p for t, p in move(layout, cell, a, motion, steps).items()} for a in chosen
+        )
     return _sparse(rows)
 
 
@@ -248,7 +258,7 @@ def noisy_cell(layout: Layout, correct: float, neighbourhood: int) -> Observatio
     cells = layout.cells()
     index = {cell: s for s, cell in enumerate(cells)}
     offsets = [DELTA[d] for d in DIRECTIONS] + (list(DIAGONALS) if neighbourhood == 8 else [])
-    rows = []
+    rows: list[dict[int, float]] = []
     for cell in cells:
         around = [(cell[0] + dr, cell[1] + dc) for dr, dc in offsets]
         near = [index[n] for n in around if layout.free(n)]
