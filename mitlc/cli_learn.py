@@ -12,11 +12,11 @@ from typing import Annotated, Any
 
 import typer
 
-from mitlc.cli_common import time_limit_option
+from mitlc.cli_common import command_deadline, time_limit_option
 from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
 from mitlc.learn.config import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.learn.rundir import RunError
-from mitlc.limits import CLI_HOW, DEFAULT_TIME_LIMIT, Deadline
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 
 RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mitlc train).")]
 
@@ -187,7 +187,7 @@ def train_command(
             resume=resume,
             progress=show,
             should_stop=stop,
-            deadline=Deadline(time_limit, "mitlc train", CLI_HOW),
+            deadline=command_deadline(time_limit, "train"),
         )
     if result.stopped:
         typer.echo(
@@ -296,7 +296,7 @@ def eval_command(
         raise RunError("--episodes must be positive")
     if episodes is not None and episodes > MAX_EVAL:
         raise RunError(f"--episodes: at most {MAX_EVAL:,} (they run at once), got {episodes:,}")
-    deadline = Deadline(time_limit, "mitlc eval", CLI_HOW)
+    deadline = command_deadline(time_limit, "eval")
     _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds, deadline=deadline)
 
 
