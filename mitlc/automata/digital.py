@@ -79,6 +79,20 @@ class DigitalAutomaton:
         """The targets of the epsilon jumps leaving ``state``."""
         return tuple(t for s, t in self.epsilon if s == state)
 
+    # The interface of mitlc.task.monitor.TaskAutomaton (shared with the lazy automaton).
+
+    def successor(self, state: int, letter: int) -> tuple[int, int]:
+        """``(target, marks)`` of the transition of ``state`` on ``letter``."""
+        return self.delta[state][letter], self.marks[state][letter]
+
+    def verdict(self, state: int) -> Verdict:
+        """The verdict of ``state``."""
+        return self.states[state].verdict
+
+    def jumps(self, state: int) -> tuple[int, ...]:
+        """The targets of the epsilon jumps leaving ``state``, by target."""
+        return self.jumps_from(state)
+
     @property
     def num_transitions(self) -> int:
         """Letter transitions plus epsilon jumps."""

@@ -6,10 +6,10 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.solve import Solution, pmax, pmax_horizon
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
-from mitlc.product.explicit import Product, build_product
+from mitlc.product.explicit import Product, build_product, start_average
+from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
 
 
@@ -75,7 +75,7 @@ class CheckReport:
 
 def check(
     world: World,
-    automaton: DigitalAutomaton,
+    automaton: TaskAutomaton,
     *,
     max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
@@ -100,7 +100,7 @@ def check(
         world=world.name,
         spec=automaton.formula,
         product=product,
-        pmax=float(solution.values[product.initial]),
+        pmax=start_average(product, solution.values),
         pmax_horizon=within,
         horizon=world.horizon,
         seconds=time.perf_counter() - start,

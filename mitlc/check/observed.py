@@ -30,7 +30,8 @@ from scipy.sparse import csr_matrix, vstack
 
 from mitlc.check.topo import spans
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product, product_verdicts
+from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
 MAX_CELLS = 20_000_000
@@ -193,9 +194,7 @@ def _model(world: World, product: Product) -> _Model:
             raise ObservedBoundError("the product's choices are not in action order")
         blocks.append(_move_matrix(product, live, choices, masks))
     moves = vstack(blocks, format="csr")
-    full_mask = masks - 1
-    terminal = np.zeros(masks * n)
-    terminal[full_mask * n + live] = 1.0
+    terminal = rules.recursion_ends(product_verdicts(product), product.num_sets).ravel()
     absorbing = np.concatenate([np.arange(masks) * n + SATISFIED, np.arange(masks) * n + VIOLATED])
     absorbing_values = np.concatenate([np.ones(masks), np.zeros(masks)])
     terminal[absorbing] = absorbing_values
@@ -222,7 +221,8 @@ def _move_matrix(product: Product, live: IntArray, choices: IntArray, masks: int
     rows, columns, probs = [], [], []
     for mask in range(masks):
         rows.append(np.repeat(mask * n + live, sizes))
-        columns.append((mask | np.repeat(product.marks[choices], sizes)) * n + t.targets[entries])
+        after = rules.saturate(mask, np.repeat(product.marks[choices], sizes), masks - 1)
+        columns.append(after * n + t.targets[entries])
         probs.append(t.probs[entries])
     return csr_matrix(
         (np.concatenate(probs), (np.concatenate(rows), np.concatenate(columns))),

@@ -34,7 +34,14 @@ from mitlc.check.topo import (
     topological_values,
 )
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.product.explicit import (
+    SATISFIED,
+    VIOLATED,
+    Product,
+    product_verdicts,
+    start_average,
+)
+from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 TOLERANCE = 1e-12
@@ -238,9 +245,14 @@ def pmax_horizon(
     sizes = np.diff(t.indptr)
     jumps = np.flatnonzero(product.action < 0)
     probs = np.where(np.repeat(product.action >= 0, sizes), t.probs, 0.0)
+    all_sets = masks - 1
     matrices = [
         csr_matrix(
-            (probs, t.targets + np.repeat((mask | product.marks) * n, sizes), t.indptr),
+            (
+                probs,
+                t.targets + np.repeat(rules.saturate(mask, product.marks, all_sets) * n, sizes),
+                t.indptr,
+            ),
             shape=(product.num_choices, masks * n),
         )
         for mask in range(masks)
@@ -250,8 +262,7 @@ def pmax_horizon(
     jump_sources = sources[jumps]
     jump_targets = t.targets[t.indptr[jumps]]
     fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
-    raw = np.zeros((masks, n))
-    raw[masks - 1, :] = 1.0
+    raw = _ends(product)
     table = raw.copy()
     _settle(table, jump_sources, jump_targets)
     history = [table.copy()]
@@ -289,7 +300,12 @@ def pmax_horizon(
             break
     if not keep_history:
         history = [table]
-    return float(table[0, product.initial]), history
+    return start_average(product, table[0]), history
+
+
+def _ends(product: Product) -> FloatArray:
+    """The values when the horizon ends (:func:`mitlc.task.rules.recursion_ends`)."""
+    return rules.recursion_ends(product_verdicts(product), product.num_sets)
 
 
 def _distinct(keys: IntArray, slot: IntArray) -> IntArray:

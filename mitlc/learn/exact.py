@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.product.explicit import Product, product_verdicts
+from mitlc.task import rules
 from mitlc.worlds.model import FloatArray, IntArray
 
 Plan = tuple[list[tuple[IntArray, csr_matrix, int]], IntArray, IntArray]
@@ -42,41 +43,44 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
     plans: list[
         Plan
     ] = []  # per mask: (world-action states, their choices grouped by the mask after)
+    popcount = np.asarray(rules.popcounts(product.num_sets), dtype=np.int64)
     for mask in range(all_sets if product.num_sets else 1):
         states = np.flatnonzero(live)
         picked = choices[mask, states]
         walk = ~is_jump[picked]
-        after = mask | product.marks[picked[walk]]
+        marks = product.marks[picked[walk]]
+        after, _, complete = rules.account(mask, marks, all_sets, popcount)
+        key = np.where(complete, -1 - after, after)  # a completed round: done, frontier after
         groups = [
-            (states[walk][after == a], matrix[picked[walk][after == a]], int(a))
-            for a in np.unique(after).tolist()
+            (states[walk][key == k], matrix[picked[walk][key == k]], int(k))
+            for k in np.unique(key).tolist()
         ]
         plans.append((groups, states[~walk], jump_target[picked[~walk]]))
     # pending[mask, x]: success from x with no round completed yet; done[mask, x]: a round was
-    # completed, so success is not reaching *violated* by the horizon. A round that completes
-    # empties the frontier (as in the simulator): the policy then reads mask 0 again.
-    pending, done = _ends(all_sets, n), _ends(all_sets, n)
-    done[:, live] = 1.0
-    if not product.num_sets:  # no sets: not violated by the horizon is the success
-        pending[:, live] = 1.0
+    # completed. Both start as the success of an episode that ends there (mitlc.task.rules),
+    # and a round that completes empties the frontier, as in every run of the task monitor.
+    pending, done = _ends(product, rounds=0), _ends(product, rounds=1)
     pending, done = _jump(pending, plans), _jump(done, plans)
+    end_pending, end_done = pending.copy(), done.copy()
     for _ in range(horizon):
-        next_pending, next_done = _ends(all_sets, n), _ends(all_sets, n)
+        next_pending, next_done = end_pending.copy(), end_done.copy()
         for mask, (groups, _, _) in enumerate(plans):
-            for states, rows, after in groups:
-                if product.num_sets and after == all_sets:
-                    next_pending[mask, states] = next_done[mask, states] = rows @ done[0]
+            for states, rows, key in groups:
+                if key < 0:
+                    next_pending[mask, states] = next_done[mask, states] = rows @ done[-1 - key]
                 else:
-                    next_pending[mask, states] = rows @ pending[after]
-                    next_done[mask, states] = rows @ done[after]
+                    next_pending[mask, states] = rows @ pending[key]
+                    next_done[mask, states] = rows @ done[key]
         pending, done = _jump(next_pending, plans), _jump(next_done, plans)
-    return float(pending[0, product.initial])
+    pairs = product.initial_distribution or ((product.initial, 1.0),)
+    return float(sum(p * pending[0, x] for x, p in pairs))
 
 
-def _ends(all_sets: int, n: int) -> FloatArray:
-    values = np.zeros((all_sets + 1, n))
-    values[:, SATISFIED] = 1.0
-    values[:, VIOLATED] = 0.0
+def _ends(product: Product, rounds: int) -> FloatArray:
+    """``values[mask, x]``: the success of an episode that ends in ``x`` with ``rounds``
+    completed rounds (every mask alike)."""
+    success = rules.success(product_verdicts(product), rounds, product.num_sets)
+    values: FloatArray = np.tile(success.astype(np.float64), ((1 << product.num_sets), 1))
     return values
 
 

@@ -25,8 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product
-from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Sparse, World
+from mitlc.product.explicit import Product, product_verdicts
+from mitlc.task import rules
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Rewards, Sparse, World
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,6 +62,21 @@ class Tables:
     observation_cumulative: FloatArray | None
     num_observations: int
     """Observation ids (cells for an MDP)."""
+    verdict: IntArray
+    """The verdict code of each product state (:func:`mitlc.product.explicit.product_verdicts`)."""
+    popcount: IntArray
+    """:func:`mitlc.task.rules.popcounts` as an array."""
+    starts: IntArray
+    """The product states an episode may start in (``[initial]`` for a certain start)."""
+    start_cumulative: FloatArray
+    """Their cumulative probabilities."""
+
+    @property
+    def rewards(self) -> Rewards:
+        """The reward terms."""
+        return Rewards(
+            self.reward_accept, self.reward_satisfied, self.reward_violated, self.reward_move
+        )
 
     @property
     def num_states(self) -> int:
@@ -97,6 +113,10 @@ def tables(product: Product, world: World) -> Tables:
     owner = np.repeat(np.arange(n), counts)
     keep = pending[owner]
     choice[owner[keep], rank[keep]] = np.flatnonzero(keep)
+    pairs = product.initial_distribution or ((product.initial, 1.0),)
+    for x, _ in pairs:  # a task decided at the start: one step on the absorbing state's loop
+        if not pending[x]:
+            choice[x, :num_a] = product.choice_ptr[x]
     stay = world.actions.index("stay") if "stay" in world.actions else -1
     observations = world.observations
     return Tables(
@@ -121,6 +141,10 @@ def tables(product: Product, world: World) -> Tables:
         observation=None if observations is None else observations.model,
         observation_cumulative=None if observations is None else _cumulative(observations.model),
         num_observations=world.num_states if observations is None else len(observations.names),
+        verdict=product_verdicts(product),
+        popcount=np.asarray(rules.popcounts(product.num_sets), dtype=np.int64),
+        starts=np.array([x for x, _ in pairs], dtype=np.int64),
+        start_cumulative=np.cumsum([p for _, p in pairs]),
     )
 
 
@@ -173,7 +197,7 @@ class VecProduct:
 
     def __init__(self, tables: Tables, num_envs: int, rng: np.random.Generator) -> None:
         self.tables, self.num_envs, self.rng = tables, num_envs, rng
-        self.state = np.full(num_envs, tables.initial, dtype=np.int64)
+        self.state = self._starts(num_envs)
         self.mask = np.zeros(num_envs, dtype=np.int64)
         self.steps = np.zeros(num_envs, dtype=np.int64)
         self.actions_taken = np.zeros(num_envs, dtype=np.int64)
@@ -234,25 +258,21 @@ class VecProduct:
         uniform = self.rng.random(self.num_envs)
         nxt = draw(t.cumulative, t.indptr, t.targets, choice, uniform)
         jump = actions >= t.num_world_actions
-        marks = t.marks[choice]
-        new = marks & ~self.mask
-        new_count = _popcount(new)
-        seen = self.mask | marks
-        complete = (seen == t.all_sets) & (t.num_sets > 0)
+        mask, new_count, complete = rules.account(
+            self.mask, t.marks[choice], t.all_sets, t.popcount
+        )
         self.rounds += complete
-        mask = np.where(complete, 0, seen)
-        reward = t.reward_accept * new_count + t.reward_move * t.moves[choice]
-        reward = reward + np.where(nxt == SATISFIED, t.reward_satisfied, 0.0)
-        reward = reward + np.where(nxt == VIOLATED, t.reward_violated, 0.0)
+        verdict = t.verdict[nxt]
+        reward = rules.reward(new_count, verdict, t.rewards) + t.reward_move * t.moves[choice]
         self.steps += ~jump
         self.actions_taken += 1
-        terminated = (nxt == SATISFIED) | (nxt == VIOLATED)
+        terminated = rules.terminated(verdict)
         # jumps take no time; a bound on all actions stops a policy that only jumps
         truncated = ~terminated & (
             (self.steps >= t.horizon) | (self.actions_taken >= 4 * t.horizon + 4)
         )
         observation = np.where(jump, self.observation, self._observe(nxt))
-        success = (nxt != VIOLATED) & ((nxt == SATISFIED) | (self.rounds > 0) | (t.num_sets == 0))
+        success = rules.success(verdict, self.rounds, t.num_sets)
         self.returns += reward
         result = Step(
             reward=reward,
@@ -273,13 +293,28 @@ class VecProduct:
     def _restart(self, done: BoolArray) -> None:
         if not done.any():
             return
-        t = self.tables
-        self.state = np.where(done, t.initial, self.state)
+        self.state = np.where(done, self._starts(self.num_envs), self.state)
         self.mask = np.where(done, 0, self.mask)
         for counter in (self.steps, self.actions_taken, self.rounds):
             counter[done] = 0
         self.returns[done] = 0.0
         self.observation = np.where(done, self._observe(self.state), self.observation)
+
+    def _starts(self, n: int) -> IntArray:
+        """``n`` start states: the initial one, or drawn from the start distribution (only
+        then is the random generator read)."""
+        t = self.tables
+        if len(t.starts) == 1:
+            return np.full(n, t.initial, dtype=np.int64)
+        drawn: IntArray = t.starts[
+            np.minimum(
+                np.searchsorted(
+                    t.start_cumulative, self.rng.random(n) * t.start_cumulative[-1], side="right"
+                ),
+                len(t.starts) - 1,
+            )
+        ]
+        return drawn
 
     def _observe(self, states: IntArray) -> IntArray:
         """What the agent sees in product states ``states`` (absorbing ones: 0)."""
@@ -292,12 +327,3 @@ class VecProduct:
             t.observation_cumulative, t.observation.indptr, t.observation.targets, cells, uniform
         )
         return seen
-
-
-def _popcount(values: IntArray) -> IntArray:
-    count = np.zeros_like(values)
-    rest = values.copy()
-    while rest.any():
-        count += rest & 1
-        rest >>= 1
-    return count

@@ -23,13 +23,14 @@ million cells.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.task import TaskAutomaton, TaskMonitor, rules
 from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
 
 VIOLATED, SATISFIED = 0, 1
@@ -54,6 +55,10 @@ class Product:
     marks: IntArray
     transitions: Sparse
     num_sets: int
+    initial_distribution: tuple[tuple[int, float], ...] = ()
+    """The product states the episode may start in, with their probabilities (the world's
+    start distribution; one state with probability 1 for a certain start). ``initial`` is the
+    most probable of them."""
 
     @property
     def num_states(self) -> int:
@@ -84,6 +89,31 @@ class LabelError(MitlcError, ValueError):
     """The task names a proposition that the world does not label."""
 
 
+def product_verdicts(product: Product) -> IntArray:
+    """The verdict code (:mod:`mitlc.task.rules`) of every product state: the two absorbing
+    states are violated and satisfied, every other one pending."""
+    verdict = np.full(product.num_states, rules.PENDING, dtype=np.int64)
+    verdict[VIOLATED], verdict[SATISFIED] = rules.VIOLATED, rules.SATISFIED
+    return verdict
+
+
+def start_distribution(world: World) -> tuple[tuple[int, float], ...]:
+    """The world's start states with their probabilities, the most probable first (the
+    world's ``start``); a certain start is ``((start, 1.0),)``."""
+    given = world.start_distribution
+    if not given:
+        return ((world.start, 1.0),)
+    rest = [(int(s), float(p)) for s, p in given if s != world.start]
+    first = [(int(s), float(p)) for s, p in given if s == world.start]
+    return tuple(first + rest)
+
+
+def start_average(product: Product, values: FloatArray) -> float:
+    """``values`` (one per product state) averaged over the start distribution."""
+    pairs = product.initial_distribution or ((product.initial, 1.0),)
+    return float(sum(p * float(values[x]) for x, p in pairs))
+
+
 def automaton_letters(world: World, propositions: Sequence[str]) -> IntArray:
     """Per world state, its letter over the automaton's ``propositions`` (bit ``j`` for
     ``propositions[j]``), read by name from the world's letters: the world may label more
@@ -111,6 +141,14 @@ def estimate(world: World, automaton: DigitalAutomaton) -> tuple[int, int]:
     return states, transitions
 
 
+def _too_large(what: str, max_product_states: int) -> ProductSizeError:
+    return ProductSizeError(
+        f"{what}, past the limit of {max_product_states:,} states ({TRANSITIONS_PER_STATE} "
+        "times as many transitions); raise it with --max-product-states N (max_product_states "
+        "from Python), or shrink the world or the formula's bounds"
+    )
+
+
 def check_size(
     world: World, automaton: DigitalAutomaton, max_product_states: int | None
 ) -> tuple[int, int]:
@@ -120,19 +158,17 @@ def check_size(
     if max_product_states is None:
         return states, transitions
     if states > max_product_states or transitions > TRANSITIONS_PER_STATE * max_product_states:
-        raise ProductSizeError(
+        raise _too_large(
             f"the product of {world.num_states:,} world states and {len(automaton.states):,} "
-            f"automaton states may have {states:,} states and {transitions:,} transitions, past "
-            f"the limit of {max_product_states:,} states ({TRANSITIONS_PER_STATE} times as many "
-            "transitions); raise it with --max-product-states N (max_product_states from "
-            "Python), or shrink the world or the formula's bounds"
+            f"automaton states may have {states:,} states and {transitions:,} transitions",
+            max_product_states,
         )
     return states, transitions
 
 
 def build_product(
     world: World,
-    automaton: DigitalAutomaton,
+    automaton: TaskAutomaton,
     *,
     max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
@@ -140,45 +176,54 @@ def build_product(
 ) -> Product:
     """The reachable product of ``world`` and ``automaton`` (see the module docstring).
 
-    Refuses a product whose size bound passes ``max_product_states`` (``None``: no limit) with
-    :class:`ProductSizeError`; stops with :class:`mitlc.limits.LimitError` after
-    ``time_limit`` seconds (``None``: no limit), or at ``deadline`` when one is given."""
-    check_size(world, automaton, max_product_states)
+    ``automaton`` is the eager :class:`DigitalAutomaton`, whose size bound is checked before
+    anything is built, or a lazy one, whose states are made as the product reaches them; either
+    way the build stops with :class:`ProductSizeError` once it has more than
+    ``max_product_states`` states (``None``: no limit). It stops with
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    ``deadline`` when one is given."""
+    if isinstance(automaton, DigitalAutomaton):
+        check_size(world, automaton, max_product_states)
     clock = Deadline.of(deadline, time_limit, "the product build").at("the product build")
-    return _Builder(world, automaton, clock).build()
+    monitor = TaskMonitor(automaton, world.rewards)
+    return _Builder(world, monitor, clock, max_product_states).build()
 
 
 class _Builder:
-    """Breadth-first exploration, one frontier (all states of a level) at a time in numpy."""
+    """Breadth-first exploration, one frontier (all states of a level) at a time in numpy.
 
-    def __init__(self, world: World, automaton: DigitalAutomaton, deadline: Deadline) -> None:
-        self.world, self.deadline = world, deadline
-        self.letters = automaton_letters(world, automaton.propositions)
-        self.num_q = len(automaton.states)
-        self.delta = np.asarray(automaton.delta, dtype=np.int64)
-        self.marks = np.asarray(automaton.marks, dtype=np.int64)
-        self.num_sets = automaton.num_sets
-        kinds = {"pending": 0, "violated": 1, "satisfied": 2}
-        self.verdict = np.array([kinds[s.verdict] for s in automaton.states], dtype=np.int64)
-        jumps = sorted(automaton.epsilon)
-        self.jump_ptr = np.searchsorted(
-            np.array([j[0] for j in jumps], dtype=np.int64), np.arange(self.num_q + 1)
-        )
-        self.jump_target = np.array([j[1] for j in jumps], dtype=np.int64)
-        self.ids = np.full(world.num_states * self.num_q, -1, dtype=np.int64)
+    A pair ``(s, q)`` is coded ``q * S + s``, so the table of ids grows with the automaton
+    states the monitor makes; the automaton's steps, verdicts and jumps are the monitor's."""
+
+    def __init__(
+        self, world: World, monitor: TaskMonitor, deadline: Deadline, limit: int | None
+    ) -> None:
+        self.world, self.monitor, self.deadline, self.limit = world, monitor, deadline, limit
+        self.letters = automaton_letters(world, monitor.propositions)
+        self.num_s = world.num_states
+        self.ids = np.full(0, -1, dtype=np.int64)
         self.codes: list[IntArray] = [np.array([-1, -1], dtype=np.int64)]
         self.count = 2
-        self.initial_code = world.start * self.num_q + automaton.initial
 
     def intern(self, codes: IntArray) -> tuple[IntArray, IntArray]:
-        """Product ids of ``s * num_q + q`` codes (new ones numbered in order of first
+        """Product ids of ``q * S + s`` codes (new ones numbered in order of first
         appearance), and the new states' ids."""
-        kind = self.verdict[codes % self.num_q]
-        out = np.where(kind == 1, VIOLATED, SATISFIED).astype(np.int64)
-        pending = kind == 0
+        kind = self.monitor.verdicts(codes // self.num_s)
+        out = np.where(kind == rules.VIOLATED, VIOLATED, SATISFIED).astype(np.int64)
+        pending = kind == rules.PENDING
+        if len(codes) and int(codes.max()) >= len(self.ids):
+            grown = np.full(max(int(codes.max()) + 1, 2 * len(self.ids)), -1, dtype=np.int64)
+            grown[: len(self.ids)] = self.ids
+            self.ids = grown
         fresh = codes[pending][self.ids[codes[pending]] < 0]
         unique, first = np.unique(fresh, return_index=True)
         new_codes = unique[np.argsort(first, kind="stable")]
+        if self.limit is not None and self.count + len(new_codes) > self.limit:
+            raise _too_large(
+                f"the product of {self.num_s:,} world states and its task grows past "
+                f"{self.limit:,} states",
+                self.limit,
+            )
         new_ids = np.arange(self.count, self.count + len(new_codes), dtype=np.int64)
         self.ids[new_codes] = new_ids
         self.codes.append(new_codes)
@@ -186,9 +231,17 @@ class _Builder:
         out[pending] = self.ids[codes[pending]]
         return out, new_ids
 
+    def jumps(self, q: IntArray) -> tuple[IntArray, IntArray]:
+        """For each entry of ``q``: how many epsilon jumps it has, and their targets (all of
+        them, entry after entry)."""
+        lists = [self.monitor.jumps(state) for state in q.tolist()]
+        counts = np.array([len(targets) for targets in lists], dtype=np.int64)
+        flat = [t for targets in lists for t in targets]
+        return counts, np.asarray(flat, dtype=np.int64)
+
     def build(self) -> Product:
-        world, num_q = self.world, self.num_q
-        all_sets = (1 << self.num_sets) - 1
+        world, num_s, monitor = self.world, self.num_s, self.monitor
+        all_sets = monitor.all_sets
         # choices: (state, order key, action, marks); edges: (choice, target, probability)
         c_state = [np.array([VIOLATED, SATISFIED])]
         c_key = [np.zeros(2, dtype=np.int64)]
@@ -198,20 +251,21 @@ class _Builder:
         e_target = [np.array([VIOLATED, SATISFIED])]
         e_prob = [np.ones(2)]
         num_choices = 2
-        initial, frontier = self.intern(np.array([self.initial_code]))
+        starts = start_distribution(world)
+        q0 = monitor.reset().q
+        initial, frontier = self.intern(q0 * num_s + np.array([s for s, _ in starts]))
         codes = self.codes[-1]
         while len(frontier):
             self.deadline.check_now()
-            s, q = codes // num_q, codes % num_q
-            letter = self.letters[s]
-            q_next, marks = self.delta[q, letter], self.marks[q, letter]
+            s, q = codes % num_s, codes // num_s
+            q_next, marks = monitor.successors(q, self.letters[s])
             batches = []
             for a in range(world.num_actions):
                 rows = s * world.num_actions + a
                 lo, hi = world.transitions.indptr[rows], world.transitions.indptr[rows + 1]
                 counts = hi - lo
                 index = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-                targets = world.transitions.targets[index] * num_q + np.repeat(q_next, counts)
+                targets = np.repeat(q_next, counts) * num_s + world.transitions.targets[index]
                 batches.append(
                     (
                         a,
@@ -222,19 +276,15 @@ class _Builder:
                         marks,
                     )
                 )
-            jump_counts = self.jump_ptr[q + 1] - self.jump_ptr[q]
+            jump_counts, jump_targets = self.jumps(q)
             if jump_counts.any():
                 owner = np.repeat(np.arange(len(frontier)), jump_counts)
-                rank = np.arange(jump_counts.sum()) - np.repeat(
-                    np.cumsum(jump_counts) - jump_counts, jump_counts
-                )
-                t = self.jump_target[self.jump_ptr[q[owner]] + rank]
                 batches.append(
                     (
                         -1,
                         owner,
                         np.ones(len(owner), dtype=np.int64),
-                        s[owner] * num_q + t,
+                        jump_targets * num_s + s[owner],
                         np.ones(len(owner)),
                         np.zeros(len(owner), dtype=np.int64),
                     )
@@ -251,7 +301,7 @@ class _Builder:
                     c_key.append(np.full(n, a, dtype=np.int64))
                     c_action.append(np.full(n, a, dtype=np.int64))
                 else:
-                    jumped = targets % num_q
+                    jumped = targets // num_s
                     c_key.append(world.num_actions + jumped)
                     c_action.append(-1 - jumped)
                 e_choice.append(np.repeat(choice_ids, counts))
@@ -261,9 +311,13 @@ class _Builder:
             frontier = np.concatenate(new_frontier)
             # The new states' ids are consecutive, in the order their codes were appended.
             codes = np.concatenate(self.codes[level_start:])
-        return self._assemble(
+        product = self._assemble(
             initial[0], c_state, c_key, c_action, c_marks, e_choice, e_target, e_prob
         )
+        distribution = tuple(
+            (int(x), p) for x, (_, p) in zip(initial.tolist(), starts, strict=True)
+        )
+        return replace(product, initial_distribution=distribution)
 
     def _assemble(
         self,
@@ -293,8 +347,8 @@ class _Builder:
         indptr = np.searchsorted(edge_choice, np.arange(len(order) + 1))
         sorted_state = state[order]
         codes = np.concatenate(self.codes)
-        world_state = np.where(codes >= 0, codes // self.num_q, -1)
-        automaton_state = np.where(codes >= 0, codes % self.num_q, -1)
+        world_state = np.where(codes >= 0, codes % self.num_s, -1)
+        automaton_state = np.where(codes >= 0, codes // self.num_s, -1)
         return Product(
             world_state=world_state.astype(np.int64),
             automaton_state=automaton_state.astype(np.int64),
@@ -303,5 +357,5 @@ class _Builder:
             action=np.concatenate(c_action)[order],
             marks=np.concatenate(c_marks)[order],
             transitions=Sparse(indptr.astype(np.int64), (unique % n).astype(np.int64), probs),
-            num_sets=self.num_sets,
+            num_sets=self.monitor.num_sets,
         )

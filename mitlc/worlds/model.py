@@ -79,7 +79,8 @@ class Rewards:
 
 @dataclass(frozen=True, slots=True)
 class World:
-    """A grid world with its task (see the module docstring)."""
+    """A world with its task (see the module docstring): a grid, or a finite gymnasium env
+    (:mod:`mitlc.worlds.gym_world`), whose states are then its observations."""
 
     name: str
     rows: int
@@ -101,6 +102,11 @@ class World:
     rewards: Rewards = field(default_factory=Rewards)
     observations: Observations | None = None
     """``None`` for an MDP."""
+    start_distribution: tuple[tuple[int, float], ...] = ()
+    """Where an episode starts: empty for the certain start ``start`` (grid worlds, and any
+    world with a single start state); otherwise the ``(state, probability)`` pairs of positive
+    probability, sorted by state, with ``start`` the most probable of them (the lowest id on
+    ties). A world made from a gymnasium env takes it from ``initial_state_distrib``."""
 
     @property
     def num_states(self) -> int:

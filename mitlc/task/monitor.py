@@ -1,0 +1,315 @@
+"""The task monitor: the single definition of a task during an episode.
+
+``TaskMonitor(automaton, rewards)`` follows one run of a limit-deterministic generalized Büchi
+automaton (DESIGN.md, "The automaton") along the letters an episode produces. Its state is
+``(automaton state, frontier, rounds, steps)``; a world step reads the letter of the position
+being left (position 0 is the start, before the first action), and an epsilon jump moves the
+automaton without reading a letter or taking time. Each step gives the transition's marks, the
+sets new in the round, the task's reward, the verdict, whether the episode is decided and
+whether it is a success, by the rules of :mod:`mitlc.task.rules`.
+
+The automaton is anything with the :class:`TaskAutomaton` interface: the eager
+:class:`mitlc.automata.DigitalAutomaton` or the lazy one, whose states and successors are made
+on first reach; the monitor memoises the successors it asks for in growing tables, so the
+batched form (:meth:`TaskMonitor.successors`, :meth:`TaskMonitor.read_batch`) is a gather.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from mitlc.task import rules
+from mitlc.task.rules import VERDICT_CODES, TaskRewards
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+
+DENSE_LETTERS = 1 << 20
+"""With at most this many letters (20 propositions) the batched form finds a letter's column in
+a dense table; with more, by binary search among the letters seen."""
+
+
+class TaskAutomaton(Protocol):
+    """What the monitor reads of an automaton (eager or lazy)."""
+
+    @property
+    def formula(self) -> str: ...
+    @property
+    def propositions(self) -> tuple[str, ...]: ...
+    @property
+    def num_sets(self) -> int: ...
+    @property
+    def initial(self) -> int: ...
+    def successor(self, state: int, letter: int) -> tuple[int, int]:
+        """``(target, marks)`` of the transition of ``state`` on ``letter``."""
+        ...
+
+    def verdict(self, state: int) -> str:
+        """``pending``, ``violated`` or ``satisfied``."""
+        ...
+
+    def jumps(self, state: int) -> tuple[int, ...]:
+        """The targets of the epsilon jumps of ``state``, in order."""
+        ...
+
+
+class MonitorState(NamedTuple):
+    """Where a run of the task is: automaton state, frontier, completed rounds, world steps."""
+
+    q: int
+    frontier: int
+    rounds: int
+    steps: int
+
+
+class Outcome(NamedTuple):
+    """What one step (a letter read, or a jump) did."""
+
+    state: MonitorState
+    marks: int
+    new: int
+    """Acceptance sets new in the round."""
+    reward: float
+    verdict: int
+    """A code of :data:`mitlc.task.rules.VERDICT_NAMES`."""
+    terminated: bool
+    success: bool
+
+
+class BatchOutcome(NamedTuple):
+    """:class:`Outcome` for a batch of runs, as arrays."""
+
+    q: IntArray
+    frontier: IntArray
+    rounds: IntArray
+    marks: IntArray
+    new: IntArray
+    reward: FloatArray
+    verdict: IntArray
+    terminated: BoolArray
+    success: BoolArray
+
+
+class TaskMonitor:
+    """A task's rules over an automaton (see the module docstring)."""
+
+    def __init__(self, automaton: TaskAutomaton, rewards: TaskRewards) -> None:
+        self.automaton, self.rewards = automaton, rewards
+        self.num_sets = automaton.num_sets
+        self.all_sets = (1 << self.num_sets) - 1
+        self._popcount = rules.popcounts(self.num_sets)
+        self._popcount_array = np.asarray(self._popcount, dtype=np.int64)
+        self._memo: dict[tuple[int, int], tuple[int, int, int]] = {}
+        self._verdicts: list[int] = []
+        self._jumps: list[tuple[int, ...]] = []
+        self._letter_keys = np.zeros(0, dtype=np.int64)
+        self._letter_columns = np.zeros(0, dtype=np.int64)
+        letters = 1 << len(automaton.propositions)
+        self._dense_size = letters if letters <= DENSE_LETTERS else 0
+        self._dense = np.zeros(self._dense_size, dtype=np.int64)
+        # successor tables, a row per automaton state and a column per letter seen (column 0
+        # stays unfilled: the column of letters not seen yet)
+        self._next = np.full((1, 1), -1, dtype=np.int64)
+        self._marks = np.zeros((1, 1), dtype=np.int64)
+        self._next_flat, self._marks_flat = self._next.reshape(-1), self._marks.reshape(-1)
+        self._verdict_array = np.zeros(0, dtype=np.int64)
+        self._rule_tables()
+
+    @property
+    def propositions(self) -> tuple[str, ...]:
+        """The automaton's propositions: bit ``i`` of a letter is ``propositions[i]``."""
+        return self.automaton.propositions
+
+    def letter(self, true_props: Sequence[str] | set[str] | frozenset[str]) -> int:
+        """The letter in which exactly ``true_props`` hold (others are ignored)."""
+        return sum(1 << i for i, p in enumerate(self.propositions) if p in true_props)
+
+    # -- one run -------------------------------------------------------------------------------
+
+    def reset(self) -> MonitorState:
+        """The start of a run: the initial state, an empty frontier, no rounds, no steps."""
+        return MonitorState(self.automaton.initial, 0, 0, 0)
+
+    def verdict(self, q: int) -> int:
+        """The verdict code of automaton state ``q``."""
+        verdicts = self._verdicts
+        if q >= len(verdicts):
+            self._learn_states(q)
+        return verdicts[q]
+
+    def jumps(self, q: int) -> tuple[int, ...]:
+        """The epsilon-jump targets of ``q``."""
+        if q >= len(self._jumps):
+            self._learn_states(q)
+        return self._jumps[q]
+
+    def step(self, state: MonitorState, letter: int) -> Outcome:
+        """A world step: the automaton reads ``letter`` (the position being left)."""
+        found = self._memo.get((state.q, letter))
+        if found is None:
+            found = self._transition(state.q, letter)
+        q, marks, verdict = found
+        frontier, new, complete = rules.account(
+            state.frontier, marks, self.all_sets, self._popcount
+        )
+        rounds = state.rounds + complete
+        return Outcome(
+            MonitorState(q, frontier, rounds, state.steps + 1),
+            marks,
+            new,
+            float(rules.reward(new, verdict, self.rewards)),
+            verdict,
+            bool(rules.terminated(verdict)),
+            bool(rules.success(verdict, rounds, self.num_sets)),
+        )
+
+    def jump(self, state: MonitorState, index: int) -> Outcome | None:
+        """The ``index``-th epsilon jump of the state (no letter, no time); ``None`` when the
+        state has no such jump."""
+        targets = self.jumps(state.q)
+        if not 0 <= index < len(targets):
+            return None
+        q = targets[index]
+        verdict = self.verdict(q)
+        return Outcome(
+            state._replace(q=q),
+            0,
+            0,
+            float(rules.reward(0, verdict, self.rewards)),
+            verdict,
+            bool(rules.terminated(verdict)),
+            bool(rules.success(verdict, state.rounds, self.num_sets)),
+        )
+
+    def success(self, state: MonitorState) -> bool:
+        """Whether a run in ``state`` is a success so far."""
+        return bool(rules.success(self.verdict(state.q), state.rounds, self.num_sets))
+
+    # -- batches -------------------------------------------------------------------------------
+    #
+    # The batched form evaluates the rules once over their whole (small) domain, every
+    # (frontier, marks) pair and every (sets new, verdict) pair, and then gathers: the same
+    # definitions as the scalar form, at a handful of array operations a step.
+
+    def successors(self, q: IntArray, letters: IntArray) -> tuple[IntArray, IntArray]:
+        """``(targets, marks)`` for each pair ``(q[i], letters[i])``, made on first use."""
+        flat = q * self._next.shape[1] + self._column_of(letters)
+        try:
+            target: IntArray = self._next_flat.take(flat)
+        except IndexError:  # a state past the tables' rows: make its row
+            target = np.full(len(q), -1, dtype=np.int64)
+        if len(target) and target.min() < 0:
+            unknown = target < 0
+            pairs = np.unique(np.stack([q[unknown], letters[unknown]]), axis=1)
+            for state, letter in pairs.T.tolist():
+                self._transition(state, letter)
+            flat = q * self._next.shape[1] + self._column_of(letters)
+            target = self._next_flat.take(flat)
+        marks: IntArray = self._marks_flat.take(flat)
+        return target, marks
+
+    def verdicts(self, q: IntArray) -> IntArray:
+        """The verdict codes of the automaton states ``q``."""
+        if len(q) and int(q.max()) >= len(self._verdict_array):
+            self._learn_states(int(q.max()))
+        found: IntArray = self._verdict_array[q]
+        return found
+
+    def read_batch(
+        self, q: IntArray, frontier: IntArray, rounds: IntArray, letters: IntArray
+    ) -> BatchOutcome:
+        """:meth:`step` for a batch of runs (the steps counter is the caller's)."""
+        target, marks = self.successors(q, letters)
+        verdict = self._verdict_array.take(target)
+        pair = frontier * (self.all_sets + 1) + marks
+        rounds = rounds + self._complete.take(pair)
+        new = self._new.take(pair)
+        return BatchOutcome(
+            target,
+            self._frontier_after.take(pair),
+            rounds,
+            marks,
+            new,
+            self._reward.take(new * 3 + verdict),
+            verdict,
+            self._terminated.take(verdict),
+            self._success.take(verdict * 2 + (rounds > 0)),
+        )
+
+    def _rule_tables(self) -> None:
+        """The rules over their domains, for :meth:`read_batch`."""
+        size = self.all_sets + 1
+        frontier, marks = np.divmod(np.arange(size * size, dtype=np.int64), size)
+        after, new, complete = rules.account(frontier, marks, self.all_sets, self._popcount_array)
+        self._frontier_after, self._new = after, new
+        self._complete = np.asarray(complete, dtype=np.int64)
+        counts, verdicts = np.divmod(np.arange((self.num_sets + 1) * 3, dtype=np.int64), 3)
+        self._reward = np.asarray(rules.reward(counts, verdicts, self.rewards), dtype=np.float64)
+        codes = np.arange(3, dtype=np.int64)
+        self._terminated = np.asarray(rules.terminated(codes), dtype=np.bool_)
+        verdicts, done = np.divmod(np.arange(6, dtype=np.int64), 2)
+        self._success = np.asarray(rules.success(verdicts, done, self.num_sets), dtype=np.bool_)
+
+    # -- memo ----------------------------------------------------------------------------------
+
+    def _transition(self, q: int, letter: int) -> tuple[int, int, int]:
+        target, marks = self.automaton.successor(q, letter)
+        verdict = self.verdict(target)
+        found = (target, marks, verdict)
+        self._memo[(q, letter)] = found
+        column = self._add_letter(letter)
+        if max(q, target) >= self._next.shape[0]:
+            self._grow(max(q, target) + 1, self._next.shape[1])
+        self._next[q, column], self._marks[q, column] = target, marks
+        if q >= len(self._verdicts):
+            self._learn_states(q)
+        return found
+
+    def _learn_states(self, q: int) -> None:
+        """Verdicts and jumps of every state up to ``q``."""
+        for state in range(len(self._verdicts), q + 1):
+            self._verdicts.append(VERDICT_CODES[self.automaton.verdict(state)])
+            self._jumps.append(tuple(self.automaton.jumps(state)))
+        self._verdict_array = np.asarray(self._verdicts, dtype=np.int64)
+
+    def _column_of(self, letters: IntArray) -> IntArray:
+        """The tables' column of each letter; 0 (a column never filled) for a letter not seen
+        yet. A dense lookup for alphabets of at most :data:`DENSE_LETTERS` letters, a binary
+        search among the letters seen otherwise."""
+        if self._dense_size:
+            found: IntArray = self._dense.take(letters)
+            return found
+        keys = self._letter_keys
+        if not len(keys):
+            return np.zeros(len(letters), dtype=np.int64)
+        where = np.minimum(np.searchsorted(keys, letters), len(keys) - 1)
+        found = np.where(keys[where] == letters, self._letter_columns[where], 0)
+        return found
+
+    def _add_letter(self, letter: int) -> int:
+        """The column of ``letter``, a new one if it has none yet."""
+        column = int(self._column_of(np.array([letter], dtype=np.int64))[0])
+        if column:
+            return column
+        column = self._next.shape[1]
+        self._grow(self._next.shape[0], column + 1)
+        if self._dense_size:
+            self._dense[letter] = column
+        else:
+            keys = np.append(self._letter_keys, letter)
+            columns = np.append(self._letter_columns, column)
+            order = np.argsort(keys, kind="stable")
+            self._letter_keys, self._letter_columns = keys[order], columns[order]
+        return column
+
+    def _grow(self, rows: int, cols: int) -> None:
+        old_rows, old_cols = self._next.shape
+        rows, cols = max(rows, 2 * old_rows if rows > old_rows else old_rows), cols
+        if (rows, cols) == (old_rows, old_cols):
+            return
+        nxt = np.full((rows, cols), -1, dtype=np.int64)
+        marks = np.zeros((rows, cols), dtype=np.int64)
+        nxt[:old_rows, :old_cols], marks[:old_rows, :old_cols] = self._next, self._marks
+        self._next, self._marks = nxt, marks
+        self._next_flat, self._marks_flat = nxt.reshape(-1), marks.reshape(-1)

@@ -1,0 +1,105 @@
+"""The rules of a task during an episode, each written once for a single episode and a batch.
+
+Every function here reads only ``|``, ``&``, ``~``, ``==``, ``*``, ``+`` and indexing, so the same
+code runs on Python ints (one episode, the gymnasium wrapper's per-step path) and on numpy
+integer arrays (a batch of episodes, the simulator, the exact recursions). They are the single
+definition of:
+
+* the **frontier** of a generalized Büchi condition (Baier and Katoen, *Principles of Model
+  Checking*, 2008, Sect. 4.3: a run is accepting when it sees every acceptance set infinitely
+  often; the frontier is the sets seen in the current round, emptied when the round completes);
+* the **verdict** codes of an automaton state, and when an episode **terminates** (the task is
+  decided);
+* **success** of an episode: it never reaches *violated*, and it reaches *satisfied*, or
+  completes a round of all acceptance sets, or the task has no acceptance sets (a safety task);
+  a violation after a completed round is a failure;
+* the task's **reward**: ``accept`` for each acceptance set new in the round, ``satisfied`` and
+  ``violated`` on entering those states (a world's own terms, such as a cost per move, are the
+  world's and are added by whoever steps it).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+PENDING, VIOLATED, SATISFIED = 0, 1, 2
+"""Verdict codes."""
+
+VERDICT_NAMES = ("pending", "violated", "satisfied")
+"""``VERDICT_NAMES[code]``."""
+
+VERDICT_CODES = {name: code for code, name in enumerate(VERDICT_NAMES)}
+
+
+class TaskRewards(Protocol):
+    """The task's reward terms (:class:`mitlc.worlds.model.Rewards` has them)."""
+
+    @property
+    def accept(self) -> float: ...
+    @property
+    def satisfied(self) -> float: ...
+    @property
+    def violated(self) -> float: ...
+
+
+T = TypeVar("T", int, Any)
+"""An int (one episode) or a numpy integer array (a batch)."""
+
+
+def popcounts(num_sets: int) -> tuple[int, ...]:
+    """``popcounts(k)[m]``: the number of sets in mask ``m`` (a table: indexable by an int or,
+    as ``numpy.asarray``, by an array)."""
+    return tuple(m.bit_count() for m in range(1 << num_sets))
+
+
+def account(frontier: T, marks: T, all_sets: int, popcount: Any) -> tuple[T, T, T]:
+    """Add a transition's ``marks`` to the ``frontier``: ``(frontier after, sets new in this
+    round, round completed)``. A completed round empties the frontier; with no acceptance sets
+    (``all_sets == 0``) no round ever completes."""
+    new = popcount[marks & ~frontier]
+    seen = frontier | marks
+    complete = (seen == all_sets) & (all_sets > 0)
+    return seen - seen * complete, new, complete
+
+
+def saturate(done_mask: T, marks: T, all_sets: int) -> T:
+    """The frontier of the finite-horizon recursions, where ``all_sets`` stands for "a round was
+    completed" (after which only a violation matters): ``mask | marks``, kept at ``all_sets``
+    once reached. It is :func:`account`'s frontier with the completed round remembered."""
+    return done_mask | marks
+
+
+def terminated(verdict: T) -> T:
+    """The task is decided: the episode ends."""
+    return verdict != PENDING
+
+
+def success(verdict: T, rounds: T, num_sets: int) -> T:
+    """The episode's success so far (see the module docstring): ``rounds`` counts completed
+    rounds (any positive number, or a "round completed" flag)."""
+    return (verdict != VIOLATED) & ((verdict == SATISFIED) | (rounds > 0) | (num_sets == 0))
+
+
+def reward(new: T, verdict: T, rewards: TaskRewards) -> Any:
+    """The task's reward for a transition that added ``new`` sets to the frontier and entered a
+    state of ``verdict``."""
+    return (
+        rewards.accept * new
+        + rewards.satisfied * (verdict == SATISFIED)
+        + rewards.violated * (verdict == VIOLATED)
+    )
+
+
+def recursion_ends(verdict: npt.NDArray[np.int64], num_sets: int) -> npt.NDArray[np.float64]:
+    """The finite-horizon recursions' values when the horizon ends: ``values[mask, x]`` is the
+    :func:`success` of an episode ending in a state of ``verdict[x]`` with the frontier
+    ``mask``, where the mask of all sets stands for a completed round (:func:`saturate`)."""
+    masks = 1 << num_sets
+    done = (np.arange(masks) == masks - 1).astype(np.int64)
+    ends: npt.NDArray[np.float64] = success(verdict[None, :], done[:, None], num_sets).astype(
+        np.float64
+    )
+    return ends
