@@ -69,18 +69,11 @@ def check_command(
     from mitlc.check.drn import to_drn
     from mitlc.worlds import load_world
 
-    world = load_world(world_file)
     if spec is not None:
-        from mitlc.product import relabel
-        from mitlc.worlds import read_world_file
-
         formula = load_formula(spec, None)
-        try:
-            labels = read_world_file(world_file).labels
-            world = relabel(world, labels, to_text(formula))
-        except ValueError as err:
-            raise UsageError(f"{world_file}: the spec {spec}: {err}") from None
+        world = load_world(world_file, to_text(formula))
     else:
+        world = load_world(world_file)
         formula = parse(world.spec, world.spec_source)
     deadline = command_deadline(time_limit, "check")
     digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
@@ -103,6 +96,12 @@ def check_command(
             raise UsageError(f"mitlc: --export-dot: {err}") from None
         write_atomically(export_dot, dot.encode("utf-8"))
     summary = report.summary()
+    if "start_states" in summary:
+        typer.echo(
+            f"note: the start is drawn from {summary['start_states']} states; pmax and "
+            "pmax_horizon are averaged over the start distribution",
+            err=True,
+        )
     observed, why = _observed(world, report.product, deadline) if world.is_pomdp else (None, "")
     if world.is_pomdp:
         summary["pmax_horizon_observed"] = observed.value if observed is not None else why

@@ -37,12 +37,11 @@ def _overrides(
 
 def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, str]:
     """The run's settings and the world's name."""
-    from mitlc.worlds import read_world_file
+    from mitlc.worlds.load import read_any_world_file
 
-    raw = read_world_file(world_file)
-    config = resolve(
-        raw.training, overrides, discount=raw.discount, pomdp=raw.observation is not None
-    )
+    raw = read_any_world_file(world_file)
+    pomdp = getattr(raw, "observation", None) is not None
+    config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
     return config, raw.name or world_file.stem
 
 

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import random
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mitlc.automata import translate
+from mitlc.check import check
 from mitlc.check.drn import storm_label, storm_property, to_drn
 from mitlc.check.solve import pmax, pmax_horizon
 from mitlc.product.explicit import SATISFIED, VIOLATED, build_product
@@ -247,3 +249,31 @@ def test_check_maps_the_worlds_propositions_by_name(tmp_path: Path) -> None:
     assert check(world, translate(parse("!a U b"))).pmax == 0.0
     with pytest.raises(LabelError, match=r"\['c'\] are not among the world's \['a', 'b'\]"):
         check(world, translate(parse("F c")))
+
+
+def test_a_drawn_start_is_checked_from_its_distribution(tmp_path: Path) -> None:
+    """A world whose start is drawn: `check` reports the average over the start states, and
+    Storm, given every start state as an initial state of the DRN export, agrees state by
+    state."""
+    rng = random.Random(7)
+    for formula in formulas(7, 8):
+        world = random_world(rng, to_text(formula))
+        weights = [rng.randint(1, 5) for _ in range(world.num_states)]
+        dist = tuple((s, w / sum(weights)) for s, w in enumerate(weights))
+        drawn = replace(world, start_distribution=dist, start=weights.index(max(weights)))
+        automaton = translate(formula)
+        report = check(drawn, automaton)
+        alone = [check(replace(world, start=s), automaton).pmax for s, _ in dist]
+        assert report.pmax == pytest.approx(
+            sum(p * v for (_, p), v in zip(dist, alone, strict=True))
+        )
+        path = tmp_path / "product.drn"
+        path.write_text(to_drn(report.product), encoding="utf-8")
+        model = stormpy.build_model_from_drn(str(path))
+        prop = stormpy.parse_properties(storm_property(report.product))[0]
+        values = stormpy.model_checking(model, prop).get_value_vector()
+        assert len(model.initial_states) == len(report.product.initial_distribution)
+        storm = {int(s): values[int(s)] for s in model.initial_states}
+        assert sorted(storm.values()) == pytest.approx(
+            sorted(float(report.solution.values[x]) for x, _ in report.product.initial_distribution)
+        )

@@ -160,7 +160,7 @@ def test_train_with_a_spec_naming_an_unlabelled_proposition_is_one_line(tmp_path
     result = runner.invoke(app, ["train", CASE1, "--spec", str(spec), "--out", str(out)])
     assert result.exit_code == 1 and "Traceback" not in result.output
     (line,) = result.output.strip().splitlines()
-    assert line.endswith("propositions ['zzz'] label no cell (labels: ['a', 'b'])")
+    assert line.endswith("the task 'F zzz': proposition 'zzz' labels no cell (labels: a, b)")
     assert not (out / "config.json").exists()
 
 

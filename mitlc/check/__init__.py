@@ -49,7 +49,15 @@ class CheckReport:
             "pmax_horizon": self.pmax_horizon,
             "horizon": self.horizon,
             "seconds": round(self.seconds, 6),
+            **self._starts(),
         }
+
+    def _starts(self) -> dict[str, Any]:
+        """For a drawn start: how many start states the probabilities are averaged over."""
+        starts = self.product.initial_distribution
+        if len(starts) <= 1:
+            return {}
+        return {"start_states": len(starts)}
 
     def policy_data(self, world: World) -> list[dict[str, Any]]:
         """The optimal policy: for each product state, the world cell, automaton state and the

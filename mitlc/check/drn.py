@@ -5,6 +5,10 @@ acceptance set (the marks of a product transition depend only on its source, so 
 state-based reading accepts the same runs; jumps never return to their source); ``satisfied``
 and ``violated`` on the two absorbing states. Only states reachable from the initial state are
 written (Storm's LTL checker fails on labelled unreachable states), numbered in product order.
+
+A world whose start is drawn (:attr:`mitlc.worlds.model.World.start_distribution`) has several
+``init`` states; a comment line gives their probabilities, and the probability mitlc reports is
+the average of Storm's values at those states weighted by them.
 """
 
 from __future__ import annotations
@@ -13,10 +17,10 @@ from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 
 
 def reachable(product: Product) -> list[int]:
-    """The product states reachable from the initial state, in increasing order."""
+    """The product states reachable from the start states, in increasing order."""
     t = product.transitions
-    seen = {product.initial}
-    stack = [product.initial]
+    seen = set(starts(product))
+    stack = list(seen)
     while stack:
         x = stack.pop()
         for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):
@@ -27,13 +31,24 @@ def reachable(product: Product) -> list[int]:
     return sorted(seen)
 
 
+def starts(product: Product) -> dict[int, float]:
+    """The start states of the product and their probabilities."""
+    return dict(product.initial_distribution or ((product.initial, 1.0),))
+
+
 def to_drn(product: Product) -> str:
     """The DRN text of ``product`` (its reachable part)."""
     states = reachable(product)
     number = {x: i for i, x in enumerate(states)}
     choices = sum(int(product.choice_ptr[x + 1] - product.choice_ptr[x]) for x in states)
+    first = starts(product)
     lines = [
         "// mitlc product",
+        *(
+            ["// start distribution: " + ", ".join(f"{number[x]}: {p!r}" for x, p in first.items())]
+            if len(first) > 1
+            else []
+        ),
         "@type: MDP",
         "@parameters",
         "",
@@ -52,7 +67,7 @@ def to_drn(product: Product) -> str:
         for c in range(lo, hi):
             if product.action[c] >= 0:
                 marks |= int(product.marks[c])
-        labels = ["init"] if x == product.initial else []
+        labels = ["init"] if x in first else []
         labels += [f"acc{k}" for k in range(product.num_sets) if marks >> k & 1]
         labels += ["satisfied"] if x == SATISFIED else []
         labels += ["violated"] if x == VIOLATED else []

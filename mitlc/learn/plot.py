@@ -37,6 +37,7 @@ from mitlc.learn.trajectories import Trajectory, rollouts
 from mitlc.syntax import parse
 from mitlc.worlds import read_world_file
 from mitlc.worlds.grid import Layout, check
+from mitlc.worlds.load import is_env_world
 from mitlc.worlds.model import FloatArray
 
 LEARNING_CURVE, TRAJECTORIES, AUTOMATON = "learning_curve.png", "trajectories.png", "automaton.png"
@@ -390,9 +391,12 @@ def plot_run(
         f"{name} — {config.algo}: {wins} of {len(drawn)} greedy rollouts succeed "
         f"(seed {seed})\n{formula}"
     )
-    grid = out / TRAJECTORIES
-    write_atomically(grid, png_bytes(trajectory_figure(setting, drawn, title)))
+    written = [curve]
+    if not is_env_world(setting.world_path):  # a gymnasium env has no grid file to draw
+        grid = out / TRAJECTORIES
+        write_atomically(grid, png_bytes(trajectory_figure(setting, drawn, title)))
+        written.append(grid)
     automaton = out / AUTOMATON
     timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
     render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
-    return [curve, grid, automaton]
+    return [*written, automaton]

@@ -46,10 +46,9 @@ from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
 from mitlc.learn.vec import Tables, VecProduct, tables
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
-from mitlc.product.env import relabel
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
-from mitlc.worlds import World, load_world, read_world_file
+from mitlc.worlds import World, load_world
 
 CONFIG, METRICS, CHECKPOINT, SUMMARY = (
     "config.json",
@@ -114,10 +113,7 @@ def prepare(
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "setting up the run")
     world = load_world(world_path)
     if spec is not None and spec != world.spec:
-        try:
-            world = relabel(world, read_world_file(world_path).labels, spec)
-        except ValueError as err:
-            raise RunError(f"{world_path}: the task {spec!r}: {err}") from None
+        world = load_world(world_path, spec)
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
     product = build_product(world, automaton, deadline=clock.at("the product"))
     return Setting(world_path, world, automaton, product, tables(product, world), config)

@@ -56,9 +56,9 @@ class Product:
     transitions: Sparse
     num_sets: int
     initial_distribution: tuple[tuple[int, float], ...] = ()
-    """The product states the episode may start in, with their probabilities (the world's
-    start distribution; one state with probability 1 for a certain start). ``initial`` is the
-    most probable of them."""
+    """The product states the episode may start in, each once, with their probabilities (the
+    world's start distribution; one state with probability 1 for a certain start). ``initial``
+    is the one of the world's ``start``."""
 
     @property
     def num_states(self) -> int:
@@ -314,9 +314,10 @@ class _Builder:
         product = self._assemble(
             initial[0], c_state, c_key, c_action, c_marks, e_choice, e_target, e_prob
         )
-        distribution = tuple(
-            (int(x), p) for x, (_, p) in zip(initial.tolist(), starts, strict=True)
-        )
+        merged: dict[int, float] = {}
+        for x, (_, p) in zip(initial.tolist(), starts, strict=True):
+            merged[x] = merged.get(x, 0.0) + p
+        distribution = tuple(merged.items())
         return replace(product, initial_distribution=distribution)
 
     def _assemble(

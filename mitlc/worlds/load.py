@@ -1,5 +1,10 @@
 """YAML to a validated :class:`~mitlc.worlds.model.World`.
 
+A world file declares a grid (``grid:``) or names a finite gymnasium environment (``env:``,
+:mod:`mitlc.worlds.gym_world`); the passes below are the grid's, and an env world file goes
+through the same three (its whole-file checks in :func:`mitlc.worlds.gym_world.check_file`),
+then has its env made and converted.
+
 Three passes, each reporting every problem it finds before giving up: read the YAML (syntax
 errors and duplicate keys, with line and column), check its shape with the pydantic models of
 :mod:`mitlc.worlds.schema`, then check what needs the whole file (cells inside the grid and
@@ -18,13 +23,13 @@ from typing import Any
 
 import numpy as np
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from mitlc.errors import MitlcError, SpecError, locate
 from mitlc.inputs import bad_utf8, read_head
 from mitlc.limits import MAX_WORLD_BYTES
 from mitlc.syntax import atoms, parse, read_spec
-from mitlc.worlds import safe_yaml
+from mitlc.worlds import gym_world, safe_yaml
 from mitlc.worlds.grid import (
     FieldPath,
     Layout,
@@ -35,7 +40,15 @@ from mitlc.worlds.grid import (
     transitions,
 )
 from mitlc.worlds.model import Observations, Rewards, World
-from mitlc.worlds.schema import MODELS, OBSERVATION_TYPES, LocalPattern, WorldFile, show
+from mitlc.worlds.schema import (
+    ENV_MODELS,
+    MODELS,
+    OBSERVATION_TYPES,
+    EnvWorldFile,
+    LocalPattern,
+    WorldFile,
+    show,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,16 +161,21 @@ def _yaml_problem(err: yaml.MarkedYAMLError, text: str, filename: str) -> Proble
     return Problem(message, (), line, column, detail)
 
 
-def from_pydantic(error: ValidationError) -> list[tuple[FieldPath, str, bool]]:
+def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[FieldPath, str, bool]]:
     """Each error as (the field's path, a message in the file's words, whether it is about a
-    key rather than a value); union tags and ``[key]`` markers are dropped from the path."""
+    key rather than a value); union tags and ``[key]`` markers are dropped from the path.
+    ``env``: the error is of an env world file (:class:`~mitlc.worlds.schema.EnvWorldFile`)."""
     found = []
+    is_tag = _is_env_tag if env else _is_tag
     for item in error.errors():
         loc, kind, ctx = item["loc"], item["type"], item.get("ctx") or {}
         at_key = loc[-1] == "[key]"
-        path = tuple(x for i, x in enumerate(loc) if not _is_tag(loc, i) and x != "[key]")
+        path = tuple(x for i, x in enumerate(loc) if not is_tag(loc, i) and x != "[key]")
         if kind == "extra_forbidden":
-            fields = list(MODELS.get(tuple(map(str, loc[:-1])), WorldFile).model_fields)
+            if env:
+                fields = list(_env_model(loc[:-1]).model_fields)
+            else:
+                fields = list(MODELS.get(tuple(map(str, loc[:-1])), WorldFile).model_fields)
             close = difflib.get_close_matches(str(loc[-1]), fields, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else f" (known: {', '.join(fields)})"
             found.append((path, f"unknown field{hint}", True))
@@ -177,6 +195,19 @@ def _is_tag(loc: tuple[str | int, ...], i: int) -> bool:
         and loc[0] in ("observation", "spec")
         and loc[1] in (*OBSERVATION_TYPES, "path", "inline")
     )
+
+
+def _is_env_tag(loc: tuple[str | int, ...], i: int) -> bool:
+    """:func:`_is_tag` for an env world file: the spec's kinds and a label's form."""
+    return (i == 1 and loc[0] == "spec" and loc[1] in ("path", "inline")) or (
+        i == 2 and loc[0] == "labels" and loc[2] in ("obs", "decoded")
+    )
+
+
+def _env_model(loc: tuple[str | int, ...]) -> type[BaseModel]:
+    """The model of an env world file at ``loc`` (a label's name read as ``*``)."""
+    key = tuple("*" if i == 1 and loc[0] == "labels" else str(x) for i, x in enumerate(loc))
+    return ENV_MODELS.get(key, EnvWorldFile)
 
 
 def _message(kind: str, msg: str, value: object, ctx: dict[str, Any]) -> str:
@@ -200,18 +231,55 @@ def _message(kind: str, msg: str, value: object, ctx: dict[str, Any]) -> str:
 
 
 def read_world_file(path: str | Path) -> WorldFile:
-    """The validated contents of the world file at ``path`` (shape and whole-file checks),
-    ``training`` settings included; a :class:`WorldError` with every problem if it is bad."""
+    """The validated contents of the grid world file at ``path`` (shape and whole-file
+    checks), ``training`` settings included; a :class:`WorldError` with every problem if it is
+    bad, or if it is an env world file (see :func:`read_any_world_file`)."""
     return _read(Path(path))[0]
 
 
-def _read(path: Path) -> tuple[WorldFile, Layout, _Source]:
+def read_any_world_file(path: str | Path) -> WorldFile | EnvWorldFile:
+    """The validated contents of the world file at ``path``, a grid world or an env world
+    (the env is not made: see :func:`load_world`); a :class:`WorldError` if it is bad."""
+    path = Path(path)
+    source = _mapping(path)
+    if is_env_file(source.data):
+        return _read_env(path, source)
+    return _read_grid(path, source)[0]
+
+
+def is_env_world(path: str | Path) -> bool:
+    """Whether the world file at ``path`` names a gymnasium env (a :class:`WorldError` if it is
+    not a readable mapping)."""
+    return is_env_file(_mapping(Path(path)).data)
+
+
+def is_env_file(data: object) -> bool:
+    """Whether a world file's YAML (its value) names a gymnasium env (``env:``) rather than a
+    grid."""
+    return isinstance(data, dict) and "env" in data
+
+
+def _mapping(path: Path) -> _Source:
+    """The world file's YAML, which must be a mapping."""
     filename = str(path)
     source = read_yaml(path, filename)
     if not isinstance(source.data, dict):
         got = "an empty file" if source.data is None else show(source.data)
         problem = Problem(f"expected a mapping of the world's fields, got {got}")
         raise WorldError(filename, [source.locate((), problem.message)])
+    return source
+
+
+def _read(path: Path) -> tuple[WorldFile, Layout, _Source]:
+    source = _mapping(path)
+    if is_env_file(source.data):
+        message = "this is a gymnasium env world, where a grid world (grid: ...) is needed"
+        raise WorldError(str(path), [source.locate(("env",), message, key=True)])
+    return _read_grid(path, source)
+
+
+def _read_grid(path: Path, source: _Source) -> tuple[WorldFile, Layout, _Source]:
+    filename = str(path)
     try:
         world = WorldFile.model_validate(source.data)
     except ValidationError as err:
@@ -223,18 +291,77 @@ def _read(path: Path) -> tuple[WorldFile, Layout, _Source]:
     return world, layout, source
 
 
-def load_world(path: str | Path) -> World:
-    """Load, validate and build the world at ``path``; a :class:`WorldError` if it is bad."""
+def _read_env(path: Path, source: _Source) -> EnvWorldFile:
+    """An env world file's shape and whole-file checks (:func:`gym_world.check_file`)."""
+    filename = str(path)
+    try:
+        world = EnvWorldFile.model_validate(source.data)
+    except ValidationError as err:
+        problems = []
+        for p, m, k in from_pydantic(err, env=True):
+            if p == ("grid",) and m.startswith("unknown field"):
+                m = "a world has either grid: or env:, not both"
+            problems.append(source.locate(p, m, key=k))
+        raise WorldError(filename, problems) from None
+    found = gym_world.check_file(world)
+    if found:
+        raise WorldError(filename, [source.locate(p, m) for p, m in found])
+    return world
+
+
+def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
+    """Build the world of an env world file: make the env and convert it."""
+    filename = str(path)
+    world = _read_env(path, source)
+    spec, spec_source, propositions = _load_spec(world, path, source, task)
+    missing = [p for p in propositions if p not in world.labels]
+    if missing:
+        known = ", ".join(sorted(world.labels)) or "none"
+        problems = [
+            _unlabelled(source, spec, spec_source, f"proposition {p!r} holds in no state", known)
+            for p in missing
+        ]
+        raise WorldError(filename, problems)
+    try:
+        env = gym_world.make_env(world.env)
+        try:
+            return gym_world.build_world(
+                world,
+                env,
+                name=world.name or path.stem,
+                spec=spec,
+                spec_source=spec_source,
+                propositions=propositions,
+            )
+        finally:
+            env.close()
+    except gym_world.GymWorldError as err:
+        raise WorldError(filename, [source.locate(p, m) for p, m in err.found]) from None
+
+
+def load_world(path: str | Path, spec: str | None = None) -> World:
+    """Load, validate and build the world at ``path``; a :class:`WorldError` if it is bad.
+
+    ``spec`` (a formula's text, which must parse: a :class:`mitlc.errors.SpecError` otherwise)
+    replaces the file's task; its propositions are labelled from the file's ``labels`` as the
+    file's own spec's would be.
+
+    A world file naming a gymnasium env (``env:``) is converted by
+    :mod:`mitlc.worlds.gym_world`: an env without a transition table is a :class:`WorldError`
+    at ``env.id`` (it can be trained but not checked)."""
     path = Path(path)
-    world, layout, source = _read(path)
-    spec, spec_source, propositions = _load_spec(world, path, source)
+    source = _mapping(path)
+    if is_env_file(source.data):
+        return _load_env_world(path, source, spec)
+    world, layout, source = _read_grid(path, source)
+    spec, spec_source, propositions = _load_spec(world, path, source, spec)
     cells = layout.cells()
     labelled = {p: set(world.labels.get(p, ())) for p in propositions}
     missing = [p for p in propositions if not labelled[p]]
     if missing:
         known = ", ".join(sorted(world.labels)) or "none"
         problems = [
-            source.locate(("spec",), f"proposition {p!r} labels no cell (labels: {known})")
+            _unlabelled(source, spec, spec_source, f"proposition {p!r} labels no cell", known)
             for p in missing
         ]
         raise WorldError(str(path), problems)
@@ -273,13 +400,26 @@ def load_world(path: str | Path) -> World:
     )
 
 
+def _unlabelled(source: _Source, spec: str, spec_source: str, what: str, known: str) -> Problem:
+    """A proposition of the task that no label declares: at the file's ``spec`` field, or, for
+    a task given in its place, naming that task."""
+    if spec_source == "<spec>":
+        return Problem(f"the task {spec!r}: {what} (labels: {known})")
+    return source.locate(("spec",), f"{what} (labels: {known})")
+
+
 def _reason(err: OSError | ValueError) -> str:
     return (err.strerror if isinstance(err, OSError) else None) or str(err)
 
 
-def _load_spec(world: WorldFile, path: Path, source: _Source) -> tuple[str, str, tuple[str, ...]]:
-    """The spec's text, where it came from, and its propositions (sorted)."""
+def _load_spec(
+    world: WorldFile | EnvWorldFile, path: Path, source: _Source, task: str | None = None
+) -> tuple[str, str, tuple[str, ...]]:
+    """The spec's text, where it came from, and its propositions (sorted); ``task``, when given,
+    in place of the file's."""
     filename = str(path)
+    if task is not None:
+        return task, "<spec>", atoms(parse(task, "<spec>"))
     if isinstance(world.spec, str):
         spec_path = path.parent / world.spec
         where: FieldPath = ("spec",)

@@ -324,6 +324,155 @@ MODELS: dict[tuple[str, ...], type[BaseModel]] = {
 OBSERVATION_TYPES = ("noisy-cell", "local-pattern")
 
 
+# --- worlds made from a gymnasium env (mitlc.worlds.gym_world) --------------------------------
+
+NAME = "^[A-Za-z_][A-Za-z0-9_-]*$"
+"""An action's or a decoded field's name."""
+
+
+def _env_id(value: object) -> object:
+    if not (isinstance(value, str) and value.strip()):
+        raise _fail("a gymnasium environment id (a non-empty string, e.g. FrozenLake-v1)", value)
+    return value
+
+
+def _kwarg_key(value: object) -> object:
+    if not (isinstance(value, str) and value.isidentifier()):
+        raise _fail("an argument's name (a Python identifier)", value)
+    return value
+
+
+def _is_state(value: object) -> bool:
+    return _is_int(value) and value >= 0  # type: ignore[operator]
+
+
+def _states(value: object) -> object:
+    if not isinstance(value, list) or not all(map(_is_state, value)):
+        raise _fail("a list of observations (integers from 0)", value)
+    return value
+
+
+def _where(value: object) -> object:
+    if isinstance(value, str) and re.fullmatch(NAME, value):
+        return value
+    if isinstance(value, list) and all(map(_is_state, value)):
+        return value
+    raise _fail("a list of the field's values [0, 1, ...] or another field's name", value)
+
+
+EnvId = Annotated[str, BeforeValidator(_env_id)]
+KwargName = Annotated[str, BeforeValidator(_kwarg_key)]
+Name = Annotated[
+    str,
+    _scalar(
+        "a name (a letter or _, then letters, digits, _ or -)",
+        lambda v: isinstance(v, str) and bool(re.fullmatch(NAME, v)),
+    ),
+    Field(json_schema_extra={"pattern": NAME}),
+]
+States = Annotated[list[int], BeforeValidator(_states)]
+Where = Annotated[list[int] | str, BeforeValidator(_where)]
+
+
+class Env(_Model):
+    """A registered gymnasium environment and the arguments it is made with."""
+
+    id: EnvId = Field(description="A registered gymnasium id, e.g. FrozenLake-v1 or Taxi-v4.")
+    kwargs: dict[KwargName, Any] = Field(
+        default_factory=dict,
+        description="Keyword arguments of gymnasium.make(id, **kwargs): YAML scalars, lists "
+        "and mappings only.",
+    )
+
+
+class ObsLabel(_Model):
+    """A proposition that holds in the listed observations (the env's discrete states)."""
+
+    obs: States = Field(description="The observations where the proposition holds.")
+
+
+class Decoding(_Model):
+    """A proposition over the fields of an encoded state: the state id read as a mixed-radix
+    number, the first field most significant (as Taxi's ``decode``)."""
+
+    radices: list[PositiveInt] = Field(
+        min_length=1, description="The number of values of each field, most significant first."
+    )
+    fields: list[Name] = Field(min_length=1, description="The fields' names, in the same order.")
+    where: dict[Name, Where] = Field(
+        description="For each field named, the values where the proposition holds, or another "
+        "field's name (the two fields are equal). The proposition holds where every entry does."
+    )
+
+
+class DecodedLabel(_Model):
+    """A proposition over the decoded fields of the state."""
+
+    decoded: Decoding = Field(description="The decoding and the condition on its fields.")
+
+
+def _label_kind(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return "obs" if "obs" in value else "decoded" if "decoded" in value else None
+    return None
+
+
+EnvLabel = Annotated[
+    Annotated[ObsLabel, Tag("obs")] | Annotated[DecodedLabel, Tag("decoded")],
+    Discriminator(
+        _label_kind,
+        custom_error_type="label_kind",
+        custom_error_message="expected {obs: [...]} or {decoded: {...}}",
+    ),
+]
+
+
+class EnvWorldFile(_Model):
+    """A world file naming a finite gymnasium environment and its task."""
+
+    name: WorldName | None = Field(
+        default=None,
+        description="The world's name (default: the file's stem), which names its run "
+        "directories: printable, without / or \\ or a leading '.'.",
+    )
+    env: Env = Field(description="The gymnasium environment: {id: ..., kwargs: {...}}.")
+    actions: list[Name] | None = Field(
+        default=None,
+        min_length=1,
+        description="Names of the env's discrete actions, in order (default: the known names "
+        "of FrozenLake and Taxi, else a0, a1, ...).",
+    )
+    labels: dict[Proposition, EnvLabel] = Field(
+        default_factory=dict,
+        description="For each proposition, where it holds: {obs: [...]} or {decoded: {...}}. "
+        "Every proposition of the spec must hold in some state; others are allowed.",
+    )
+    spec: SpecRef = Field(
+        description="The task: a spec file's path, relative to this file, or {formula: ...}."
+    )
+    reward: Reward = Field(default=Reward(), description="The reward terms.")
+    horizon: Horizon = Field(
+        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
+    )
+    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
+    training: dict[Any, Any] = Field(
+        default_factory=dict, description="Settings for the learners: a mapping, free-form."
+    )
+
+
+ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
+    (): EnvWorldFile,
+    ("env",): Env,
+    ("labels", "*", "obs"): ObsLabel,
+    ("labels", "*", "decoded"): DecodedLabel,
+    ("labels", "*", "decoded", "decoded"): Decoding,
+    ("spec", "inline"): InlineSpec,
+    ("reward",): Reward,
+}
+"""The model at each place of an env world file, by pydantic's error location (union tags
+included, a label's name as ``*``)."""
+
+
 def world_json_schema() -> dict[str, Any]:
     """The JSON schema of a world file (draft 2020-12), for editors and other tools."""
     schema = WorldFile.model_json_schema()
