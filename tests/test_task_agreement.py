@@ -23,6 +23,7 @@ from mitlc.product import ProductEnv, build_product
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.syntax import ast, parse, to_text
 from mitlc.task import VERDICT_NAMES, TaskMonitor
+from mitlc.task.monitor import DENSE_LETTERS
 from mitlc.worlds.model import IntArray, Rewards, Sparse, World
 from tests.strategies import random_formula
 
@@ -106,7 +107,11 @@ def env_episode(
     while True:
         verdict = env.automaton.verdict(env.automaton_state)
         absorbing = {"violated": VIOLATED, "satisfied": SATISFIED}
-        x = absorbing[verdict] if verdict in absorbing else ids[(env.world_state, env.automaton_state)]
+        x = (
+            absorbing[verdict]
+            if verdict in absorbing
+            else ids[(env.world_state, env.automaton_state)]
+        )
         _, reward, terminated, truncated, info = env.step(actions[env.frontier, x])
         steps.append((reward, info["verdict"], terminated, truncated, info["success"]))
         if terminated or truncated:
@@ -166,8 +171,7 @@ def test_stochastic_worlds_success_rates_agree_with_the_exact_value(seed: int) -
         tolerance = 4.5 * np.sqrt(max(exact * (1 - exact), 1e-4) / episodes) + 1e-9
         env = ProductEnv(world, automaton)
         wins = sum(
-            env_episode(env, product, actions, seed * episodes + i)[-1][4]
-            for i in range(episodes)
+            env_episode(env, product, actions, seed * episodes + i)[-1][4] for i in range(episodes)
         )
         assert abs(wins / episodes - exact) <= tolerance, to_text(formula)
         t = tables(product, world)
@@ -227,10 +231,16 @@ def test_a_random_start_is_averaged_over_its_distribution() -> None:
     parts = []
     for s, _ in dist:
         alone = build_product(replace(world, start=s), automaton)
-        x = {(int(a), int(b)): i for i, (a, b) in
-             enumerate(zip(alone.world_state, alone.automaton_state, strict=True))}
-        y = {(int(a), int(b)): i for i, (a, b) in
-             enumerate(zip(product.world_state, product.automaton_state, strict=True))}
+        x = {
+            (int(a), int(b)): i
+            for i, (a, b) in enumerate(zip(alone.world_state, alone.automaton_state, strict=True))
+        }
+        y = {
+            (int(a), int(b)): i
+            for i, (a, b) in enumerate(
+                zip(product.world_state, product.automaton_state, strict=True)
+            )
+        }
         mapped = np.full_like(actions[:, : alone.num_states], -1)
         for key, i in x.items():
             if key in y:
@@ -240,3 +250,50 @@ def test_a_random_start_is_averaged_over_its_distribution() -> None:
     sim = VecProduct(tables(product, drawn), 40_000, np.random.default_rng(0))
     starts = product.world_state[sim.state]
     assert abs((starts == 1).mean() - 0.75) < 0.01
+
+
+class _Parity:
+    """A hand-made automaton over 22 propositions (more letters than the batched form's dense
+    table): state ``k`` counts, modulo 3, the letters in which ``p21`` holds; a letter with
+    ``p0`` and ``p1`` both true is a violation; each count back to 0 marks the one set."""
+
+    formula = "<parity>"
+    propositions = tuple(f"p{i}" for i in range(22))
+    num_sets = 1
+    initial = 0
+
+    def successor(self, state: int, letter: int) -> tuple[int, int]:
+        if state == 3 or letter & 3 == 3:
+            return 3, 0
+        after = (state + (letter >> 21 & 1)) % 3
+        return after, int(after == 0 and letter >> 21 & 1)
+
+    def verdict(self, state: int) -> str:
+        return "violated" if state == 3 else "pending"
+
+    def jumps(self, state: int) -> tuple[int, ...]:
+        return ()
+
+
+def test_the_monitor_handles_alphabets_past_its_dense_table() -> None:
+    automaton = _Parity()
+    scalar, batch = TaskMonitor(automaton, REWARDS), TaskMonitor(automaton, REWARDS)
+    assert 1 << len(automaton.propositions) > DENSE_LETTERS
+    rng = np.random.default_rng(11)
+    runs = 64
+    q = np.zeros(runs, dtype=np.int64)
+    frontier, rounds = np.zeros(runs, dtype=np.int64), np.zeros(runs, dtype=np.int64)
+    states = [scalar.reset() for _ in range(runs)]
+    for _ in range(30):
+        letters = rng.integers(0, 1 << 22, size=runs) & ~np.int64(3 if rng.random() < 0.9 else 0)
+        out = batch.read_batch(q, frontier, rounds, letters)
+        for i in range(runs):
+            one = scalar.step(states[i], int(letters[i]))
+            states[i] = one.state
+            assert (one.state.q, one.state.rounds, one.success) == (
+                out.q[i],
+                out.rounds[i],
+                out.success[i],
+            )
+        q, frontier, rounds = out.q, out.frontier, out.rounds
+    assert rounds.max() > 0 and (q == 3).any()

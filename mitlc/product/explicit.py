@@ -233,11 +233,22 @@ class _Builder:
 
     def jumps(self, q: IntArray) -> tuple[IntArray, IntArray]:
         """For each entry of ``q``: how many epsilon jumps it has, and their targets (all of
-        them, entry after entry)."""
-        lists = [self.monitor.jumps(state) for state in q.tolist()]
-        counts = np.array([len(targets) for targets in lists], dtype=np.int64)
-        flat = [t for targets in lists for t in targets]
-        return counts, np.asarray(flat, dtype=np.int64)
+        them, entry after entry); the monitor is asked once per distinct state."""
+        counts = self.monitor.jump_counts(q)
+        if not counts.any():
+            return counts, np.zeros(0, dtype=np.int64)
+        distinct, inverse = np.unique(q, return_inverse=True)
+        lists = [self.monitor.jumps(state) for state in distinct.tolist()]
+        sizes = np.array([len(targets) for targets in lists], dtype=np.int64)
+        counts = sizes[inverse]
+        if not sizes.any():
+            return counts, np.zeros(0, dtype=np.int64)
+        flat = np.array([t for targets in lists for t in targets], dtype=np.int64)
+        start = np.cumsum(sizes) - sizes
+        owner = np.repeat(np.arange(len(q)), counts)
+        rank = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
+        targets: IntArray = flat[start[inverse[owner]] + rank]
+        return counts, targets
 
     def build(self) -> Product:
         world, num_s, monitor = self.world, self.num_s, self.monitor

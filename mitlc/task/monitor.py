@@ -108,6 +108,8 @@ class TaskMonitor:
         letters = 1 << len(automaton.propositions)
         self._dense_size = letters if letters <= DENSE_LETTERS else 0
         self._dense = np.zeros(self._dense_size, dtype=np.int64)
+        self._column_letters: list[int] = [-1]
+        self._jump_count_array = np.zeros(0, dtype=np.int64)
         # successor tables, a row per automaton state and a column per letter seen (column 0
         # stays unfilled: the column of letters not seen yet)
         self._next = np.full((1, 1), -1, dtype=np.int64)
@@ -194,20 +196,30 @@ class TaskMonitor:
 
     def successors(self, q: IntArray, letters: IntArray) -> tuple[IntArray, IntArray]:
         """``(targets, marks)`` for each pair ``(q[i], letters[i])``, made on first use."""
-        flat = q * self._next.shape[1] + self._column_of(letters)
-        try:
-            target: IntArray = self._next_flat.take(flat)
-        except IndexError:  # a state past the tables' rows: make its row
-            target = np.full(len(q), -1, dtype=np.int64)
+        columns = self._column_of(letters)
+        if len(columns) and columns.min() == 0:  # letters not seen yet get their columns
+            for letter in np.unique(letters[columns == 0]).tolist():
+                self._add_letter(letter)
+            columns = self._column_of(letters)
+        if len(q) and q.max() >= self._next.shape[0]:
+            self._grow(int(q.max()) + 1, self._next.shape[1])
+        width = self._next.shape[1]
+        flat = q * width + columns
+        target: IntArray = self._next_flat.take(flat)
         if len(target) and target.min() < 0:
-            unknown = target < 0
-            pairs = np.unique(np.stack([q[unknown], letters[unknown]]), axis=1)
-            for state, letter in pairs.T.tolist():
-                self._transition(state, letter)
-            flat = q * self._next.shape[1] + self._column_of(letters)
+            for index in np.unique(flat[target < 0]).tolist():
+                state, column = divmod(index, width)
+                self._transition(state, self._column_letters[column])
             target = self._next_flat.take(flat)
         marks: IntArray = self._marks_flat.take(flat)
         return target, marks
+
+    def jump_counts(self, q: IntArray) -> IntArray:
+        """How many epsilon jumps each state of ``q`` has."""
+        if len(q) and int(q.max()) >= len(self._verdicts):
+            self._learn_states(int(q.max()))
+        counts: IntArray = self._jump_count_array.take(q)
+        return counts
 
     def verdicts(self, q: IntArray) -> IntArray:
         """The verdict codes of the automaton states ``q``."""
@@ -272,6 +284,7 @@ class TaskMonitor:
             self._verdicts.append(VERDICT_CODES[self.automaton.verdict(state)])
             self._jumps.append(tuple(self.automaton.jumps(state)))
         self._verdict_array = np.asarray(self._verdicts, dtype=np.int64)
+        self._jump_count_array = np.array([len(j) for j in self._jumps], dtype=np.int64)
 
     def _column_of(self, letters: IntArray) -> IntArray:
         """The tables' column of each letter; 0 (a column never filled) for a letter not seen
@@ -294,6 +307,7 @@ class TaskMonitor:
             return column
         column = self._next.shape[1]
         self._grow(self._next.shape[0], column + 1)
+        self._column_letters.append(letter)
         if self._dense_size:
             self._dense[letter] = column
         else:
