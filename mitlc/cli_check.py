@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from mitlc.automata import DEFAULT_MAX_STATES, DigitalAutomaton, compile_formula
+from mitlc.automata import DEFAULT_MAX_STATES, LazyAutomaton
 from mitlc.automata.dot import write_atomically
 from mitlc.cli_common import (
     MaxStatesOpt,
@@ -24,6 +24,7 @@ from mitlc.syntax import parse, to_text
 if TYPE_CHECKING:
     from mitlc.check.observed import ObservedBound
     from mitlc.product.explicit import Product
+    from mitlc.task import TaskAutomaton
     from mitlc.worlds.model import World
 
 
@@ -76,7 +77,9 @@ def check_command(
         world = load_world(world_file)
         formula = parse(world.spec, world.spec_source)
     deadline = command_deadline(time_limit, "check")
-    digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
+    # The automaton is made lazily: only the states and letters the world reaches (a task over
+    # many propositions never builds its 2^n letters, nor its folded form, here).
+    digital = LazyAutomaton(formula, max_states=max_states, deadline=deadline)
     if world.is_pomdp:
         typer.echo(
             "note: a POMDP world; pmax and pmax_horizon are the fully observable upper bounds, "
@@ -111,7 +114,7 @@ def check_command(
         elif world.is_pomdp:
             raise UsageError(f"mitlc: --policy: no observation-based policy ({why})")
         else:
-            data = report.policy_data(world)
+            data = report.policy_data(world, digital)
         write_atomically(policy, (json_dumps(data) + "\n").encode("utf-8"))
     if world.is_pomdp and pomdp_bounds:
         summary["bounds"] = _pomdp_bounds(world, digital, max_product_states, deadline)
@@ -161,7 +164,7 @@ def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
 
 
 def _pomdp_bounds(
-    world: World, digital: DigitalAutomaton, max_product_states: int, deadline: Deadline
+    world: World, digital: TaskAutomaton, max_product_states: int, deadline: Deadline
 ) -> dict[str, object]:
     """Storm's lower and upper bounds of the POMDP's optimum, or why there are none (its time
     limit included)."""

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState
 from mitlc.automata.fold import fold
+from mitlc.automata.lazy import LazyAutomaton
 from mitlc.automata.ldba import StateLimitError, TranslationError, translate, translate_terms
 from mitlc.automata.tldgba import Tldgba
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, collector_paused
@@ -45,6 +46,7 @@ __all__ = [
     "Compiled",
     "DigitalAutomaton",
     "DigitalState",
+    "LazyAutomaton",
     "StateLimitError",
     "Tldgba",
     "TranslationError",

@@ -93,6 +93,10 @@ class DigitalAutomaton:
         """The targets of the epsilon jumps leaving ``state``, by target."""
         return self.jumps_from(state)
 
+    def obligation(self, state: int) -> str:
+        """What ``state`` still owes."""
+        return self.states[state].obligation
+
     @property
     def num_transitions(self) -> int:
         """Letter transitions plus epsilon jumps."""

@@ -28,55 +28,17 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal, NamedTuple, TypeAlias
 
-from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
-from mitlc.automata.digital import DigitalAutomaton, DigitalState, Verdict
+from mitlc.automata.digital import DigitalAutomaton, DigitalState
 from mitlc.automata.graph import live_states
-from mitlc.automata.normalize import normalize
-from mitlc.automata.progress import Progression
-from mitlc.automata.recurrence import Recurrence, split_recurrence
+from mitlc.automata.keys import SINK, Key, Rules
+from mitlc.automata.keys import StateKind as StateKind
 from mitlc.automata.terms import TermStore
-from mitlc.automata.text import form_text
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError, collector_paused
 from mitlc.syntax import ast, to_text
 
 MAX_PROPOSITIONS = 16
-
-StateKind: TypeAlias = Literal["initial", "accepting", "recurrence", "sink", "true"]
-
-
-class Key(NamedTuple):
-    """What a digital state stands for: its kind and its normal forms (a named tuple: hashed
-    and compared in C, as the exploration does for every transition).
-
-    ``initial``: ``forms == (obligation,)``. ``accepting``: ``forms == (safety, pending...)``
-    with one pending token per ``(k, seed)`` in ``seeds``. ``recurrence``: ``forms == (S, C,
-    B_1, N_1, ...)`` (:mod:`mitlc.automata.recurrence`). ``sink`` and ``true``: no forms.
-    """
-
-    kind: StateKind
-    forms: tuple[int, ...] = ()
-    seeds: tuple[tuple[int, int], ...] = ()
-
-    @staticmethod
-    def of_guess(guess: Guess) -> Key:
-        """The key of an accepting state."""
-        pending = tuple(p for _, _, p in guess.tokens)
-        seeds = tuple((k, seed) for k, seed, _ in guess.tokens)
-        return Key("accepting", (guess.safety, *pending), seeds)
-
-    def guess(self) -> Guess:
-        """The accepting state this key stands for."""
-        tokens = tuple(
-            (k, seed, p) for (k, seed), p in zip(self.seeds, self.forms[1:], strict=True)
-        )
-        return Guess(self.forms[0], tokens)
-
-
-SINK = Key("sink")
-TRUE = Key("true")
 
 
 class TranslationError(MitlcError):
@@ -85,6 +47,15 @@ class TranslationError(MitlcError):
 
 class StateLimitError(TranslationError, LimitError):
     """The translation stopped at its state limit (``max_states``, ``--max-states``)."""
+
+
+def state_limit_error(limit: int) -> StateLimitError:
+    """The error of a translation (eager or lazy) growing past ``limit`` states."""
+    return StateLimitError(
+        f"the automaton grows past --max-states {limit}; raise the state limit "
+        "with a larger --max-states (max_states from Python) or simplify the "
+        "formula (smaller bounds, fewer nested operators)"
+    )
 
 
 @dataclass(slots=True)
@@ -101,11 +72,7 @@ class _Explored:
         found = self.index.get(key)
         if found is None:
             if len(self.keys) >= limit:
-                raise StateLimitError(
-                    f"the automaton grows past --max-states {limit}; raise the state limit "
-                    "with a larger --max-states (max_states from Python) or simplify the "
-                    "formula (smaller bounds, fewer nested operators)"
-                )
+                raise state_limit_error(limit)
             found = len(self.keys)
             self.keys.append(key)
             self.index[key] = found
@@ -158,52 +125,28 @@ def _translate_terms(formula: ast.Formula, max_states: int, deadline: Deadline) 
             f"{len(propositions)} propositions; the explicit letter table allows at most "
             f"{MAX_PROPOSITIONS}"
         )
-    store = TermStore(propositions)
-    root = normalize(formula, store)
-    mu, nu = unbounded_atoms(store, root)
-    num_sets = 0 if not mu else 1 if not nu else len(mu)
-    recurrence = split_recurrence(store, root) if mu and nu else None
-    if recurrence is not None:
-        mu, num_sets = (), recurrence.num_sets
-    builder = _Builder(
-        store, Progression(store), mu if nu else (), nu, num_sets, max_states, deadline
-    )
-    builder.recurrence = recurrence
-    explored = builder.explore(root)
+    builder = _Builder(Rules.of(formula), max_states, deadline)
+    explored = builder.explore()
     return builder.finish(explored, to_text(formula))
 
 
 @dataclass(slots=True)
 class _Builder:
-    store: TermStore
-    progression: Progression
-    mu: tuple[int, ...]
-    nu: tuple[int, ...]
-    num_sets: int
+    rules: Rules
     max_states: int
     deadline: Deadline
-    substitution: Substitution = field(init=False)
-    recurrence: Recurrence | None = None
-
-    def __post_init__(self) -> None:
-        self.substitution = Substitution(self.store)
 
     @property
     def letters(self) -> range:
-        return range(1 << len(self.store.propositions))
+        return range(1 << len(self.rules.store.propositions))
 
-    def explore(self, root: int) -> _Explored:
+    def explore(self) -> _Explored:
         """Breadth-first exploration from the initial obligation, jumps included."""
         explored = _Explored()
-        start = Key("initial", (root,))
-        if self.recurrence is not None:
-            start = Key("recurrence", self.recurrence.start(self.store))
-        elif root == self.store.true:
-            start = TRUE
-        elif root == self.store.false:
-            start = SINK
+        start = self.rules.start()
         limit, deadline, letters = self.max_states, self.deadline, self.letters
         keys, index = explored.keys, explored.index
+        successor = self.rules.successor
         explored.id(start, limit)
         position = 0
         while position < len(keys):
@@ -215,35 +158,28 @@ class _Builder:
                 marks = [0] * len(letters)
             else:
                 for letter in letters:
-                    successor, mark = self._successor(key, letter)
-                    found = index.get(successor)
-                    targets.append(explored.id(successor, limit) if found is None else found)
+                    target, mark = successor(key, letter)
+                    found = index.get(target)
+                    targets.append(explored.id(target, limit) if found is None else found)
                     marks.append(mark)
             explored.delta.append(targets)
             explored.marks.append(marks)
-            if key.kind == "initial" and self.mu:
-                for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu, deadline):
-                    target = explored.id(Key.of_guess(guess), limit)
-                    explored.epsilon.append((position, target))
+            for jump in self.rules.jumps(key, deadline):
+                explored.epsilon.append((position, explored.id(jump, limit)))
             position += 1
         return explored
 
     def _initial_row(self, explored: _Explored, form: int) -> list[int]:
         """The successors of the initial-component state of ``form``, letter by letter: what
-        :meth:`_successor` gives, each obligation looked up once."""
-        step, false, true = self.progression.step, self.store.false, self.store.true
+        :meth:`Rules.successor` gives, each obligation looked up once."""
+        step, initial_key = self.rules.progression.step, self.rules.initial_key
         index, row = explored.index, []
         made: dict[int, int] = {}
         for letter in self.letters:
             after = step(form, letter)
             found = made.get(after)
             if found is None:
-                if after == false:
-                    successor = SINK
-                elif after == true:
-                    successor = TRUE
-                else:
-                    successor = Key("initial", (after,))
+                successor = initial_key(after)
                 found = index.get(successor)
                 if found is None:
                     found = explored.id(successor, self.max_states)
@@ -251,37 +187,12 @@ class _Builder:
             row.append(found)
         return row
 
-    def _successor(self, key: Key, letter: int) -> tuple[Key, int]:
-        store, all_sets = self.store, (1 << self.num_sets) - 1
-        if key == SINK:
-            return SINK, 0
-        if key == TRUE:
-            return TRUE, all_sets
-        if key.kind == "initial":
-            after = self.progression.step(key.forms[0], letter)
-            if after == store.false:
-                return SINK, 0
-            if after == store.true:
-                return TRUE, 0
-            return Key("initial", (after,)), 0
-        if key.kind == "recurrence":
-            assert self.recurrence is not None
-            stepped = self.recurrence.step(self.progression, key.forms, letter)
-            if stepped is None:
-                return SINK, 0
-            return Key("recurrence", stepped[0]), stepped[1]
-        moved = key.guess().step(self.progression, letter, self.num_sets)
-        if moved is None:
-            return SINK, 0
-        next_guess, marks = moved
-        return Key.of_guess(next_guess), marks
-
     def finish(self, explored: _Explored, formula_text: str) -> Translation:
         """Merge dead states into the sink, renumber breadth-first, attach the obligations."""
-        keys = explored.keys
+        keys, rules = explored.keys, self.rules
         sink_ids = {i for i, k in enumerate(keys) if k == SINK}
         live = live_states(
-            explored.delta, explored.marks, explored.epsilon, self.num_sets, sink_ids
+            explored.delta, explored.marks, explored.epsilon, rules.num_sets, sink_ids
         )
         order = _bfs_order(explored, live)
         new_id = {old: new for new, old in enumerate(order)}
@@ -298,7 +209,7 @@ class _Builder:
         states = []
         for old in order:
             self.deadline.check()
-            states.append(self._state(keys[old]))
+            states.append(rules.state(keys[old]))
         new_keys = [keys[old] for old in order]
         if sink is not None:
             new_keys.append(SINK)
@@ -312,30 +223,15 @@ class _Builder:
         automaton = DigitalAutomaton(
             source=formula_text,
             formula=formula_text,
-            propositions=self.store.propositions,
+            propositions=rules.store.propositions,
             states=tuple(states),
             initial=initial,
             delta=tuple(delta),
             marks=tuple(marks),
-            num_sets=self.num_sets,
+            num_sets=rules.num_sets,
             epsilon=tuple(epsilon),
         )
-        return Translation(automaton, self.store, tuple(new_keys))
-
-    def _state(self, key: Key) -> DigitalState:
-        if key == SINK:
-            return DigitalState("false", "initial", "violated")
-        if key == TRUE:
-            return DigitalState("true", "initial", "satisfied")
-        if key.kind == "initial":
-            return DigitalState(form_text(self.store, key.forms[0]), "initial", "pending")
-        if key.kind == "recurrence":
-            assert self.recurrence is not None
-            owed = self.recurrence.obligation(self.store, key.forms)
-            return DigitalState(form_text(self.store, owed), "initial", "pending")
-        guess = key.guess()
-        verdict: Verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
-        return DigitalState(guess.text(self.store), "accepting", verdict)
+        return Translation(automaton, rules.store, tuple(new_keys))
 
 
 def _bfs_order(explored: _Explored, live: set[int]) -> list[int]:

@@ -59,9 +59,13 @@ class CheckReport:
             return {}
         return {"start_states": len(starts)}
 
-    def policy_data(self, world: World) -> list[dict[str, Any]]:
-        """The optimal policy: for each product state, the world cell, automaton state and the
-        action (a world action's name, or ``jump:q`` for an epsilon jump)."""
+    def policy_data(
+        self, world: World, automaton: TaskAutomaton | None = None
+    ) -> list[dict[str, Any]]:
+        """The optimal policy: for each product state, the world cell, automaton state (with
+        its obligation when ``automaton`` is given: a lazy automaton numbers its states in the
+        order the product reached them) and the action (a world action's name, or ``jump:q``
+        for an epsilon jump)."""
         rows = []
         product = self.product
         for x in range(product.num_states):
@@ -74,6 +78,11 @@ class CheckReport:
                 {
                     "cell": list(world.cells[s]),
                     "automaton_state": int(product.automaton_state[x]),
+                    **(
+                        {"obligation": automaton.obligation(int(product.automaton_state[x]))}
+                        if automaton is not None
+                        else {}
+                    ),
                     "action": world.actions[action] if action >= 0 else f"jump:{-1 - action}",
                     "value": float(self.solution.values[x]),
                 }

@@ -42,7 +42,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mitlc.automata.digital import DigitalAutomaton
 from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
 from mitlc.check.solve import pmax
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
@@ -52,6 +51,7 @@ from mitlc.product.explicit import (
     Product,
     build_product,
 )
+from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
 
 TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
@@ -203,7 +203,7 @@ def _environment(precision: str) -> Any:
 
 def pomdp_bounds(
     world: World,
-    automaton: DigitalAutomaton,
+    automaton: TaskAutomaton,
     *,
     horizon_success: bool = False,
     max_exploration_size: int | None = 100_000,

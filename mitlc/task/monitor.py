@@ -53,6 +53,10 @@ class TaskAutomaton(Protocol):
         """The targets of the epsilon jumps of ``state``, in order."""
         ...
 
+    def obligation(self, state: int) -> str:
+        """What ``state`` still owes, as a formula's text."""
+        ...
+
 
 class MonitorState(NamedTuple):
     """Where a run of the task is: automaton state, frontier, completed rounds, world steps."""

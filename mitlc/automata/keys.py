@@ -1,0 +1,182 @@
+"""The states of the digital LDGBA and their one successor function, shared by the eager
+translation (:mod:`mitlc.automata.ldba`) and the lazy automaton (:mod:`mitlc.automata.lazy`).
+
+A state is a :class:`Key`: its kind and the normal forms behind it. :class:`Rules` holds what
+one formula's translation needs (the term store, its progression, the Master Theorem's μ- and
+ν-atoms, the recurrence split) and defines, once, the start state, the successor of a key on a
+letter with its acceptance marks, the epsilon jumps of a key, the propositions a key reads
+(:meth:`Rules.reads`: the successor and marks of a key depend on the letter only through
+``letter & reads(key)``), and the :class:`~mitlc.automata.digital.DigitalState` of a key.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple, TypeAlias
+
+from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
+from mitlc.automata.digital import DigitalState, Verdict
+from mitlc.automata.normalize import normalize
+from mitlc.automata.progress import Progression
+from mitlc.automata.recurrence import Recurrence, split_recurrence
+from mitlc.automata.terms import TermStore
+from mitlc.automata.text import form_text
+from mitlc.limits import Deadline
+from mitlc.syntax import ast
+
+StateKind: TypeAlias = Literal["initial", "accepting", "recurrence", "sink", "true"]
+
+
+class Key(NamedTuple):
+    """What a digital state stands for: its kind and its normal forms (a named tuple: hashed
+    and compared in C, as the exploration does for every transition).
+
+    ``initial``: ``forms == (obligation,)``. ``accepting``: ``forms == (safety, pending...)``
+    with one pending token per ``(k, seed)`` in ``seeds``. ``recurrence``: ``forms == (S, C,
+    B_1, N_1, ...)`` (:mod:`mitlc.automata.recurrence`). ``sink`` and ``true``: no forms.
+    """
+
+    kind: StateKind
+    forms: tuple[int, ...] = ()
+    seeds: tuple[tuple[int, int], ...] = ()
+
+    @staticmethod
+    def of_guess(guess: Guess) -> Key:
+        """The key of an accepting state."""
+        pending = tuple(p for _, _, p in guess.tokens)
+        seeds = tuple((k, seed) for k, seed, _ in guess.tokens)
+        return Key("accepting", (guess.safety, *pending), seeds)
+
+    def guess(self) -> Guess:
+        """The accepting state this key stands for."""
+        tokens = tuple(
+            (k, seed, p) for (k, seed), p in zip(self.seeds, self.forms[1:], strict=True)
+        )
+        return Guess(self.forms[0], tokens)
+
+
+SINK = Key("sink")
+TRUE = Key("true")
+
+
+@dataclass(slots=True)
+class Rules:
+    """One formula's states and transitions (see the module docstring)."""
+
+    store: TermStore
+    progression: Progression
+    root: int
+    mu: tuple[int, ...]
+    """The μ-atoms a jump guesses over (empty when the automaton needs no jumps)."""
+    nu: tuple[int, ...]
+    num_sets: int
+    recurrence: Recurrence | None = None
+    substitution: Substitution = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.substitution = Substitution(self.store)
+
+    @staticmethod
+    def of(formula: ast.Formula) -> Rules:
+        """The rules of ``formula``: its normal form, μ/ν-atoms, acceptance sets, recurrence."""
+        store = TermStore(ast.atoms(formula))
+        root = normalize(formula, store)
+        mu, nu = unbounded_atoms(store, root)
+        num_sets = 0 if not mu else 1 if not nu else len(mu)
+        recurrence = split_recurrence(store, root) if mu and nu else None
+        if recurrence is not None:
+            mu, num_sets = (), recurrence.num_sets
+        return Rules(store, Progression(store), root, mu if nu else (), nu, num_sets, recurrence)
+
+    def start(self) -> Key:
+        """The initial state."""
+        if self.recurrence is not None:
+            return Key("recurrence", self.recurrence.start(self.store))
+        if self.root == self.store.true:
+            return TRUE
+        if self.root == self.store.false:
+            return SINK
+        return Key("initial", (self.root,))
+
+    def initial_key(self, after: int) -> Key:
+        """The initial-component state of obligation ``after`` (``false``, ``true``: the sinks)."""
+        if after == self.store.false:
+            return SINK
+        if after == self.store.true:
+            return TRUE
+        return Key("initial", (after,))
+
+    def successor(self, key: Key, letter: int) -> tuple[Key, int]:
+        """The successor of ``key`` on ``letter`` and the acceptance marks of that step."""
+        if key == SINK:
+            return SINK, 0
+        if key == TRUE:
+            return TRUE, (1 << self.num_sets) - 1
+        if key.kind == "initial":
+            return self.initial_key(self.progression.step(key.forms[0], letter)), 0
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            stepped = self.recurrence.step(self.progression, key.forms, letter)
+            if stepped is None:
+                return SINK, 0
+            return Key("recurrence", stepped[0]), stepped[1]
+        moved = key.guess().step(self.progression, letter, self.num_sets)
+        if moved is None:
+            return SINK, 0
+        next_guess, marks = moved
+        return Key.of_guess(next_guess), marks
+
+    def reads(self, key: Key) -> int:
+        """The mask of the propositions whose value can change :meth:`successor` of ``key``.
+
+        :meth:`Progression.step` reads ``letter & reads(form)`` only, and the successor and the
+        marks of a key are functions of the progressions of the forms listed here (exactly the
+        forms that :meth:`Recurrence.step` and :meth:`Guess.step` progress), so
+        ``successor(key, letter) == successor(key, letter & reads(key))``."""
+        reads, store = self.progression.reads, self.store
+        if key.kind == "initial":
+            return reads(key.forms[0])
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            forms = key.forms
+            mask = reads(forms[0]) | reads(forms[1])
+            for i, chi in enumerate(self.recurrence.chis):
+                mask |= reads(forms[2 + 2 * i]) | reads(store.and_(forms[3 + 2 * i], chi))
+            return mask
+        if key.kind == "accepting":
+            guess = key.guess()
+            mask = reads(guess.safety)
+            for _, seed, pending in guess.tokens:
+                mask |= reads(store.or_(pending, seed))
+            return mask
+        return 0
+
+    def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
+        """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`."""
+        if key.kind == "initial" and self.mu:
+            for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu, deadline):
+                yield Key.of_guess(guess)
+
+    def state(self, key: Key) -> DigitalState:
+        """The obligation, component and verdict of a live state ``key``."""
+        if key == SINK:
+            return DigitalState("false", "initial", "violated")
+        if key == TRUE:
+            return DigitalState("true", "initial", "satisfied")
+        if key.kind == "initial":
+            return DigitalState(form_text(self.store, key.forms[0]), "initial", "pending")
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            owed = self.recurrence.obligation(self.store, key.forms)
+            return DigitalState(form_text(self.store, owed), "initial", "pending")
+        guess = key.guess()
+        verdict: Verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
+        return DigitalState(guess.text(self.store), "accepting", verdict)
+
+    def surely_live(self, key: Key) -> bool:
+        """True for the states :meth:`state` calls satisfied: each loops on itself with every
+        acceptance set on every letter, so an accepting run exists from it."""
+        if key.kind == "accepting":
+            return key.guess().is_trivially_true(self.store)
+        return key == TRUE
