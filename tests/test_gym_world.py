@@ -375,8 +375,9 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     ),
     "not finite": (
         {"env": {"id": "CartPole-v1"}},
-        "env.id: CartPole-v1 has no transition table (env.unwrapped.P); it can be trained but "
-        "not checked",
+        "env.id: CartPole-v1 has no transition table (env.unwrapped.P): not a finite world; "
+        "mitlc cannot check it (nor train it from a world file yet): wrap it with "
+        "mitlc.gym.TaskWrapper to learn it",
     ),
     "compatibility layer": (
         {"env": {"id": "GymV26Environment-v0", "kwargs": {"env_id": "os:system"}}},

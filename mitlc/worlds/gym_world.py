@@ -46,7 +46,7 @@ compatibility ids of :data:`WRAPPING`, which make an environment named in their 
 gymnasium is imported only for a file with ``env:``, and its warnings are silenced while the
 env is made. gymnasium 1.x registers ``Taxi-v4`` (``Taxi-v3`` is gone) and ``CliffWalking-v1``.
 An env without ``P`` (CartPole, Blackjack) cannot be converted: :func:`require_finite` says it
-can be trained but not checked.
+is not a finite world (it can be learned through :class:`mitlc.gym.TaskWrapper`).
 """
 
 from __future__ import annotations
@@ -240,7 +240,10 @@ def require_finite(env: Any, env_id: str) -> None:
     elif getattr(env.unwrapped, "initial_state_distrib", None) is None:
         missing = "start distribution (env.unwrapped.initial_state_distrib)"
     if missing is not None:
-        message = f"{env_id} has no {missing}; it can be trained but not checked"
+        message = (
+            f"{env_id} has no {missing}: not a finite world; mitlc cannot check it (nor "
+            "train it from a world file yet): wrap it with mitlc.gym.TaskWrapper to learn it"
+        )
         raise NotFiniteError([(ENV_ID, message)])
 
 

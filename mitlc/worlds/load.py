@@ -348,7 +348,7 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
 
     A world file naming a gymnasium env (``env:``) is converted by
     :mod:`mitlc.worlds.gym_world`: an env without a transition table is a :class:`WorldError`
-    at ``env.id`` (it can be trained but not checked)."""
+    at ``env.id`` (not a finite world)."""
     path = Path(path)
     source = _mapping(path)
     if is_env_file(source.data):
