@@ -23,10 +23,9 @@ from mitlc.check.observed import observed_bound
 from mitlc.check.solve import pmax_horizon
 from mitlc.cli import app
 from mitlc.limits import Deadline, LimitError
-from mitlc.product import relabel
 from mitlc.product.explicit import ProductSizeError, build_product, estimate
 from mitlc.syntax import parse, to_text
-from mitlc.worlds import load_world, read_world_file
+from mitlc.worlds import load_world
 from tests.conftest import ROOT
 from tests.strategies import random_formula
 
@@ -227,9 +226,8 @@ def test_state_limit_says_how_to_raise_it() -> None:
 
 def test_product_estimate_bounds_the_product() -> None:
     plain = load_world(CASE1)
-    labels = read_world_file(CASE1).labels
     for spec in (plain.spec, "G F a & G F b", "F G a", "G (a -> F[0,3] b)"):
-        world = relabel(plain, labels, spec)
+        world = load_world(CASE1, spec)
         automaton = translate(parse(spec))
         built = build_product(world, automaton)
         states, transitions = estimate(world, automaton)
@@ -268,9 +266,7 @@ def _reference_partition(
     for valuation, behaviour in points.items():
         groups.setdefault(valuation[0], {})[valuation[1:]] = behaviour
     present = sorted(groups)
-    signature = {
-        x: tuple(_reference_partition(groups[x], dims - 1, bound, above)) for x in present
-    }
+    signature = {x: tuple(_reference_partition(groups[x], dims - 1, bound, above)) for x in present}
     beyond = None if above is None else tuple(_full(dims - 1, bound, above))
 
     def behaviour_at(x: int) -> tuple[tuple[Box, Hashable], ...]:

@@ -20,7 +20,7 @@ from mitlc.automata import DigitalAutomaton, DigitalState, translate
 from mitlc.check.solve import pmax_horizon
 from mitlc.product import ENV_ID, ProductEnv, build_product, make_env
 from mitlc.syntax import parse
-from mitlc.worlds import Rewards, Sparse, World
+from mitlc.worlds import Rewards, Sparse, World, WorldError
 from mitlc.worlds.model import FloatArray
 from tests.conftest import ROOT
 
@@ -88,7 +88,7 @@ def test_registration_survives_reimport() -> None:
 
 
 def test_unknown_propositions_are_rejected() -> None:
-    with pytest.raises(ValueError, match="label no cell"):
+    with pytest.raises(WorldError, match="proposition 'c' labels no cell"):
         make_env(CASE1, "F c")
     with pytest.raises(ValueError, match="not among the world's"):
         spec_env(corridor({"a": [2]}), "F b")
@@ -200,11 +200,13 @@ def test_jumps_take_no_time_and_invalid_jumps_cost_a_step() -> None:
     env.reset(seed=0)
     assert env.action_space.n == jump + 1 and env.action_masks().tolist() == [True] * 4
     obs, reward, terminated, truncated, info = env.step(jump)
-    assert obs == {"world": 0, "automaton": 1} and reward == 0.0 and info["step"] == 0
+    assert obs == {"world": 0, "automaton": 1, "frontier": 0} and reward == 0.0
+    assert info["step"] == 0
     assert not (terminated or truncated or info["invalid_action"]) and env.steps == 0
     assert env.action_masks().tolist() == [True, True, True, False]
     obs, reward, _, _, info = env.step(jump)
-    assert obs == {"world": 0, "automaton": 1} and reward == 0.0 and info["invalid_action"]
+    assert obs == {"world": 0, "automaton": 1, "frontier": 0} and reward == 0.0
+    assert info["invalid_action"]
     assert env.state_index() == 0 * 3 + 1 and info["step"] == 1
     _, reward, _, _, info = env.step(STAY)  # reads !a in the accepting state: set 0
     assert (reward, info["rounds"], info["step"], info["success"]) == (10.0, 1, 2, True)

@@ -22,7 +22,7 @@ from mitlc.cli import app
 from mitlc.product.explicit import build_product
 from mitlc.syntax import parse
 from mitlc.worlds import World, WorldError, load_world, read_world_file
-from mitlc.worlds.gym_world import GymWorldError, NotFiniteError, build_world, label_holds
+from mitlc.worlds.gym_world import GymWorldError, NotFiniteError, build_world, letters_of
 from mitlc.worlds.load import read_any_world_file
 from mitlc.worlds.schema import EnvWorldFile
 from tests.conftest import ROOT
@@ -205,7 +205,7 @@ def test_decoded_label_with_values_and_equal_fields() -> None:
             "horizon": 5,
         }
     )
-    mask = label_holds(file.labels["corner"], 500)
+    mask = letters_of(file.labels, ("corner",), 500) == 1
     for s in range(500):
         row, col, p, d = env.decode(s)
         assert mask[s] == (row == 0 and col in (0, 4) and p == d), s

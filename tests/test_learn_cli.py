@@ -152,7 +152,7 @@ def test_train_set_up_stops_at_its_time_limit(tmp_path: Path) -> None:
 
 
 def test_train_with_a_spec_naming_an_unlabelled_proposition_is_one_line(tmp_path: Path) -> None:
-    """`train --spec` with a proposition that labels no cell printed relabel's ValueError as a
+    """`train --spec` with a proposition that labels no cell printed a ValueError as a
     traceback (issue 12, bug 3); `check --spec` reported it properly."""
     spec = tmp_path / "zzz.mitl"
     spec.write_text("F zzz\n")

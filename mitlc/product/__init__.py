@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product
 
 if TYPE_CHECKING:
-    from mitlc.product.env import ENV_ID, ProductEnv, make_env, relabel
+    from mitlc.product.env import ENV_ID, ProductEnv, make_env
 
-_LAZY = frozenset({"ENV_ID", "ProductEnv", "make_env", "relabel"})
+_LAZY = frozenset({"ENV_ID", "ProductEnv", "make_env"})
 
 __all__ = [
     "ENV_ID",
@@ -27,7 +27,6 @@ __all__ = [
     "ProductEnv",
     "build_product",
     "make_env",
-    "relabel",
 ]
 
 

@@ -64,7 +64,7 @@ import numpy as np
 from mitlc.errors import MitlcError
 from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds.grid import FieldPath, Found, render
-from mitlc.worlds.model import BoolArray, IntArray, Rewards, Sparse, World
+from mitlc.worlds.model import IntArray, Rewards, Sparse, World
 from mitlc.worlds.schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel, show
 
 ACTION_NAMES: dict[str, tuple[str, ...]] = {
@@ -250,34 +250,6 @@ def require_finite(env: Any, env_id: str) -> None:
 # --- labels ---------------------------------------------------------------------------------
 
 
-def decode(n: int, radices: Sequence[int]) -> list[IntArray]:
-    """Every state ``0 .. n-1`` read as a mixed-radix number, the first field most
-    significant: one array of values per field."""
-    ids = np.arange(n, dtype=np.int64)
-    values: list[IntArray] = []
-    for radix in reversed(radices):
-        values.append(ids % radix)
-        ids = ids // radix
-    return values[::-1]
-
-
-def label_holds(label: ObsLabel | DecodedLabel, n: int) -> BoolArray:
-    """Where a (checked) label holds, over the states ``0 .. n-1``."""
-    if isinstance(label, ObsLabel):
-        mask = np.zeros(n, dtype=np.bool_)
-        mask[np.asarray(label.obs, dtype=np.int64)] = True
-        return mask
-    decoding = label.decoded
-    values = dict(zip(decoding.fields, decode(n, decoding.radices), strict=True))
-    mask = np.ones(n, dtype=np.bool_)
-    for field, condition in decoding.where.items():
-        if isinstance(condition, str):
-            mask &= values[field] == values[condition]
-        else:
-            mask &= np.isin(values[field], condition)
-    return mask
-
-
 def _check_labels(labels: Mapping[str, ObsLabel | DecodedLabel], n: int, found: Found) -> None:
     """The labels against the env's ``n`` observations."""
     for name, label in labels.items():
@@ -308,11 +280,18 @@ def letters_of(
     labels: Mapping[str, ObsLabel | DecodedLabel], propositions: Sequence[str], n: int
 ) -> IntArray:
     """``letters[s]``: the letter of state ``s`` over ``propositions`` (bit ``i`` for
-    ``propositions[i]``; a proposition without a label holds nowhere)."""
+    ``propositions[i]``; a proposition without a label holds nowhere), read through the one
+    definition of declarative labels (:mod:`mitlc.labels`), the gymnasium wrapper's."""
+    from mitlc.labels import compile_labels, letters_of_states
+
+    declared = {p: labels[p].model_dump() for p in propositions if p in labels}
     letters = np.zeros(n, dtype=np.int64)
-    for i, p in enumerate(propositions):
-        if p in labels:
-            letters |= label_holds(labels[p], n).astype(np.int64) << i
+    if declared:
+        named = tuple(declared)
+        partial = letters_of_states(compile_labels(declared), n, named)
+        for i, p in enumerate(propositions):
+            if p in declared:
+                letters |= ((partial >> named.index(p)) & 1) << i
     return letters
 
 

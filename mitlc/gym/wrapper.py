@@ -1,0 +1,395 @@
+"""``TaskWrapper``: a timed task (an MITL spec) on any gymnasium environment.
+
+The wrapper defines no rule of the task: every automaton step, frontier update, reward term,
+verdict, termination and success is :class:`mitlc.task.TaskMonitor`'s. What it adds is the
+plumbing between the monitor and the environment:
+
+* **Letters.** Position 0 is the observation ``reset`` returns. On a world action the monitor
+  reads the letter of the position being *left* (the labels of the current ``obs``/``info``),
+  then the environment steps and the new letter is remembered for the next step; so a verdict
+  shows one step after arrival (the convention of the explicit product).
+* **Observation.** ``Dict({"env": env's space, "automaton": Discrete(Q), "frontier":
+  Discrete(2 ** num_sets)})``: the frontier (the acceptance sets seen in the current round) is
+  the monitor's bit mask as one integer, so the observation is the task's full state and
+  Stable-Baselines3 one-hot encodes it. ``Q`` is the number of states of an eager
+  :class:`~mitlc.automata.DigitalAutomaton` (or ``max_automaton_states``, if larger); any other
+  (lazy) automaton needs ``max_automaton_states``, and a run that reaches a state past it, or a
+  state with more jumps than ``max_jumps`` (default 0), raises :class:`TaskWrapperError`.
+  With ``flatten=True``: one float32 ``Box``, the ``gymnasium.spaces.flatten`` of the env's
+  observation, a one-hot of the automaton state and the ``num_sets`` frontier bits. The env's
+  part is named ``env_key`` (``"env"``; the grid product names it ``"world"``).
+* **Actions.** The env's. If the automaton has epsilon jumps (``J`` at most from a state), the
+  env's action space must be ``Discrete(n)`` and becomes ``Discrete(n + J)``: action ``n + j``
+  takes the ``j``-th jump of the current state; no time passes, the env is not stepped and its
+  part of the observation is unchanged. A jump the state does not have is *invalid*: nothing
+  moves, the reward is 0, ``info["invalid_action"]`` is True, and it costs a step of the
+  horizon, so an agent that ignores :meth:`TaskWrapper.action_masks` still ends every episode.
+* **Inner termination.** If the env terminates while the task is pending, the run stutters on
+  its last position (a terminal state is absorbing, as in a finite world): within the same
+  ``step`` the monitor reads the final letter again, one step each, until the task is decided
+  or the horizon is reached; their rewards are summed and ``info["marks"]`` is their union.
+* **Episode end.** ``terminated`` when the task is decided or the env terminated;
+  otherwise ``truncated`` when ``horizon`` steps (world steps and invalid actions) are taken,
+  or the env truncated. Exactly one of them is true at the end.
+* **Reward.** The monitor's, replacing the env's (``reward_mode="replace"``) or added to it
+  (``"add"``; a jump or an invalid action never steps the env, so adds nothing).
+* **info.** The env's last info, plus ``verdict``, ``marks`` (acceptance-set indices),
+  ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
+  ``invalid_action`` and ``automaton_state``.
+
+``gymnasium.make("mitlc/Task-v0", env_id=..., env_kwargs=..., spec=..., labels=...,
+horizon=...)`` builds the inner env by id and wraps it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Literal, cast
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium import spaces
+from gymnasium.utils import RecordConstructorArgs
+
+from mitlc.automata import DigitalAutomaton, translate
+from mitlc.errors import MitlcError
+from mitlc.labels import LabelFunction, Labels, as_labels, letter_reader
+from mitlc.syntax import parse
+from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
+from mitlc.task.rules import TaskRewards
+from mitlc.worlds.model import BoolArray, Rewards
+
+ENV_ID = "mitlc/Task-v0"
+"""``gymnasium.make(ENV_ID, env_id=..., spec=..., labels=..., horizon=...)``."""
+
+RewardMode = Literal["replace", "add"]
+
+
+class TaskWrapperError(MitlcError, ValueError):
+    """The wrapper cannot be built as asked (or a lazy automaton outgrew its declared size)."""
+
+
+def _rewards(rewards: TaskRewards | Mapping[str, float] | None) -> TaskRewards:
+    if rewards is None:
+        return Rewards()
+    if isinstance(rewards, Mapping):
+        unknown = [k for k in rewards if k not in Rewards.__dataclass_fields__]
+        if unknown:
+            raise TaskWrapperError(
+                f"rewards: unknown term {unknown[0]!r} (expected accept, satisfied, violated, move)"
+            )
+        return Rewards(**{k: float(v) for k, v in rewards.items()})
+    return rewards
+
+
+class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
+    """A task on a gymnasium environment (see the module docstring)."""
+
+    _spec_is_inner = False
+    """Set where the inner env's spec already names the whole (a registered entry point)."""
+
+    def __init__(
+        self,
+        env: gym.Env[Any, Any],
+        spec: str | TaskAutomaton,
+        labels: Labels | LabelFunction | Mapping[str, Any],
+        *,
+        rewards: TaskRewards | Mapping[str, float] | None = None,
+        horizon: int,
+        reward_mode: RewardMode = "replace",
+        flatten: bool = False,
+        max_automaton_states: int | None = None,
+        max_jumps: int | None = None,
+        env_key: str = "env",
+    ) -> None:
+        """Wrap ``env`` with the task ``spec`` (a formula's text, or an automaton), read through
+        ``labels``. ``max_automaton_states`` (and ``max_jumps``, default 0) size a lazy
+        automaton's part of the spaces; ``env_key`` names the env's part of the observation."""
+        RecordConstructorArgs.__init__(
+            self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
+            horizon=horizon, reward_mode=reward_mode, flatten=flatten,
+            max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
+        )  # fmt: skip
+        gym.Wrapper.__init__(self, env)
+        if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
+            raise TaskWrapperError(f"horizon: expected a positive integer, got {horizon!r}")
+        if reward_mode not in ("replace", "add"):
+            raise TaskWrapperError(f"reward_mode: expected 'replace' or 'add', got {reward_mode!r}")
+        if env_key in ("automaton", "frontier"):
+            raise TaskWrapperError(f"env_key: {env_key!r} is the name of the task's part")
+        automaton = translate(parse(spec, "<spec>")) if isinstance(spec, str) else spec
+        self.automaton: TaskAutomaton = automaton
+        self.monitor = TaskMonitor(automaton, _rewards(rewards))
+        self.labels = as_labels(labels, env.observation_space)
+        self._read = letter_reader(self.labels, automaton.propositions)
+        self.horizon, self.reward_mode, self.flatten = horizon, reward_mode, flatten
+        self._add = reward_mode == "add"
+        self.num_q, self.max_jumps = self._sizes(max_automaton_states, max_jumps)
+        self._checked_below = self.num_q if isinstance(automaton, DigitalAutomaton) else 0
+        self._num_sets = automaton.num_sets
+        self._mark_lists = [
+            tuple(k for k in range(self._num_sets) if m >> k & 1)
+            for m in range(1 << min(self._num_sets, 12))
+        ]
+        self._env_key = env_key
+        self._action_spaces(env.action_space)
+        self._observation_spaces(env.observation_space)
+        self._state: MonitorState = self.monitor.reset()
+        self._letter, self._done = 0, True
+        self._env_obs: Any = None
+        self._env_info: dict[str, Any] = {}
+
+    def _sizes(self, max_states: int | None, max_jumps: int | None) -> tuple[int, int]:
+        if not isinstance(self.automaton, DigitalAutomaton):
+            if max_states is None or max_states < 1:
+                raise TaskWrapperError(
+                    "max_automaton_states: a lazy automaton needs a positive bound on its states"
+                )
+            return max_states, max_jumps or 0
+        count = len(self.automaton.states)
+        jumps = max((len(self.monitor.jumps(q)) for q in range(count)), default=0)
+        if max_states is not None and max_states < count:
+            raise TaskWrapperError(
+                f"max_automaton_states: {max_states} is below the automaton's {count} states"
+            )
+        return max_states or count, max(jumps, max_jumps or 0)
+
+    def _action_spaces(self, space: spaces.Space[Any]) -> None:
+        self._discrete = isinstance(space, spaces.Discrete)
+        if not self._discrete:
+            if self.max_jumps:
+                raise TaskWrapperError(
+                    "the task has epsilon jumps, so the env's actions must be Discrete, "
+                    f"not {space}"
+                )
+            self._env_actions = self._action_start = 0
+            return
+        assert isinstance(space, spaces.Discrete)
+        self._env_actions, self._action_start = int(space.n), int(space.start)
+        self._num_actions = self._env_actions + self.max_jumps
+        if self.max_jumps:
+            self.action_space = spaces.Discrete(self._num_actions, start=self._action_start)
+        self._masks: dict[int, BoolArray] = {}
+
+    def _observation_spaces(self, space: spaces.Space[Any]) -> None:
+        self._env_space = space
+        if not self.flatten:
+            self.observation_space = spaces.Dict(
+                {
+                    self._env_key: space,
+                    "automaton": spaces.Discrete(self.num_q),
+                    "frontier": spaces.Discrete(1 << self._num_sets),
+                }
+            )
+            return
+        flat = spaces.flatten_space(space)
+        if not isinstance(flat, spaces.Box):
+            raise TaskWrapperError(f"flatten: the env's observation space {space} is not flat")
+        self._env_dim = int(np.prod(flat.shape))
+        task = self.num_q + self._num_sets
+        self._flat_size = self._env_dim + task
+        low = np.concatenate([flat.low.reshape(-1), np.zeros(task)]).astype(np.float32)
+        high = np.concatenate([flat.high.reshape(-1), np.ones(task)]).astype(np.float32)
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+
+    # -- state ---------------------------------------------------------------------------------
+
+    @property
+    def automaton_state(self) -> int:
+        """The automaton state ``q``."""
+        return self._state.q
+
+    @property
+    def frontier(self) -> int:
+        """The mask of acceptance sets seen in the current round."""
+        return self._state.frontier
+
+    @property
+    def rounds(self) -> int:
+        """Completed rounds of all acceptance sets."""
+        return self._state.rounds
+
+    @property
+    def steps(self) -> int:
+        """Steps taken towards the horizon (world steps, stutters and invalid actions)."""
+        return self._state.steps
+
+    @property
+    def spec(self) -> Any:  # type: ignore[override]
+        """The env's spec, with this wrapper's (gymnasium's convention), or the inner env's
+        alone where it already names the whole (a registered entry point)."""
+        return self.env.spec if self._spec_is_inner else super().spec
+
+    def action_masks(self) -> BoolArray:
+        """Which actions are valid now (sb3-contrib's ``MaskablePPO`` convention): every env
+        action and the jumps of the current automaton state."""
+        if not self._discrete:
+            raise TaskWrapperError(
+                f"action masks need a Discrete action space, not {self.action_space}"
+            )
+        q = self._state.q
+        mask = self._masks.get(q)
+        if mask is None:
+            mask = np.zeros(self._num_actions, dtype=np.bool_)
+            mask[: self._env_actions + len(self.monitor.jumps(q))] = True
+            self._masks[q] = mask
+        return mask.copy()
+
+    # -- gymnasium API -------------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and start the task's run at its position 0."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._env_obs, self._env_info = obs, info
+        self._letter = self._read(obs, info)
+        self._state = state = self.monitor.reset()
+        self._done = False
+        verdict = self.monitor.verdict(state.q)
+        success = self.monitor.success(state)
+        return self._observation(obs, state), self._info(info, state, verdict, 0, success, False)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """A world action (the env steps) or an epsilon jump; see the module docstring."""
+        if self._done:
+            raise RuntimeError("the episode is over: call reset()")
+        if self._discrete:
+            a = int(action) - self._action_start
+            if not 0 <= a < self._env_actions:
+                if self._env_actions <= a < self._num_actions:
+                    return self._jump(a - self._env_actions)
+                raise ValueError(f"action {action!r} is not in {self.action_space}")
+        monitor = self.monitor
+        state, marks, _, reward, verdict, decided, success = monitor.step(self._state, self._letter)
+        obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
+        self._env_obs, self._env_info = obs, env_info
+        self._letter = letter = self._read(obs, env_info)
+        if inner_terminated and not decided:  # stutter on the absorbing last position
+            horizon = self.horizon
+            while not decided and state.steps < horizon:
+                state, more, _, gain, verdict, decided, success = monitor.step(state, letter)
+                reward += gain
+                marks |= more
+        self._state = state
+        q, frontier, rounds, steps = state
+        if q >= self._checked_below:
+            self._check_capacity(q)
+        if self._add:
+            reward += float(env_reward)
+        terminated = bool(decided or inner_terminated)
+        truncated = not terminated and (steps >= self.horizon or bool(inner_truncated))
+        self._done = terminated or truncated
+        lists = self._mark_lists
+        info = env_info.copy()
+        info["verdict"] = VERDICT_NAMES[verdict]
+        info["marks"] = [*lists[marks]] if marks < len(lists) else [*self._marks_of(marks)]
+        info["rounds"] = rounds
+        info["success"] = info["is_success"] = success
+        info["step"] = steps
+        info["invalid_action"] = False
+        info["automaton_state"] = q
+        if self.flatten:
+            return self._flat(obs, state), reward, terminated, truncated, info
+        observation = {self._env_key: obs, "automaton": q, "frontier": frontier}
+        return observation, reward, terminated, truncated, info
+
+    def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        out = self.monitor.jump(self._state, j)
+        if out is None:  # invalid: nothing moves, but a step of the horizon is spent
+            state = self._state = self._state._replace(steps=self._state.steps + 1)
+            truncated = state.steps >= self.horizon
+            self._done = truncated
+            verdict, success = self.monitor.verdict(state.q), self.monitor.success(state)
+            info = self._info(self._env_info, state, verdict, 0, success, True)
+            return self._observation(self._env_obs, state), 0.0, False, truncated, info
+        self._state = state = out.state
+        if state.q >= self._checked_below:
+            self._check_capacity(state.q)
+        truncated = not out.terminated and state.steps >= self.horizon
+        self._done = out.terminated or truncated
+        info = self._info(self._env_info, state, out.verdict, 0, out.success, False)
+        return self._observation(self._env_obs, state), out.reward, out.terminated, truncated, info
+
+    # -- internals -----------------------------------------------------------------------------
+
+    def _check_capacity(self, q: int) -> None:
+        """A lazy automaton's new states must fit the spaces declared for it."""
+        if q >= self.num_q:
+            raise TaskWrapperError(
+                f"max_automaton_states: the automaton reached state {q}, past {self.num_q}"
+            )
+        for state in range(self._checked_below, q + 1):
+            if len(self.monitor.jumps(state)) > self.max_jumps:
+                raise TaskWrapperError(
+                    f"max_jumps: automaton state {state} has more than {self.max_jumps} jumps"
+                )
+        self._checked_below = q + 1
+
+    def _marks_of(self, marks: int) -> tuple[int, ...]:
+        lists = self._mark_lists
+        if marks < len(lists):
+            return lists[marks]
+        return tuple(k for k in range(self._num_sets) if marks >> k & 1)
+
+    def _observation(self, obs: Any, state: MonitorState) -> Any:
+        if self.flatten:
+            return self._flat(obs, state)
+        return {self._env_key: obs, "automaton": state.q, "frontier": state.frontier}
+
+    def _flat(self, obs: Any, state: MonitorState) -> Any:
+        flat = np.zeros(self._flat_size, dtype=np.float32)
+        dim = self._env_dim
+        flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(self._env_space, obs))
+        flat[dim + state.q] = 1.0
+        base = dim + self.num_q
+        for k in range(self._num_sets):
+            if state.frontier >> k & 1:
+                flat[base + k] = 1.0
+        return flat
+
+    def _info(
+        self,
+        env_info: dict[str, Any],
+        state: MonitorState,
+        verdict: int,
+        marks: int,
+        success: bool,
+        invalid: bool,
+    ) -> dict[str, Any]:
+        """The env's ``info`` with the task's entries (those of :meth:`step`, spelled out there
+        for speed: keep the two alike)."""
+        info = env_info.copy()
+        info["verdict"] = VERDICT_NAMES[verdict]
+        info["marks"] = [*self._marks_of(marks)]
+        info["rounds"] = state.rounds
+        info["success"] = info["is_success"] = success
+        info["step"] = state.steps
+        info["invalid_action"] = invalid
+        info["automaton_state"] = state.q
+        return info
+
+
+def make_task_env(
+    *,
+    env_id: str,
+    spec: str | TaskAutomaton,
+    labels: Labels | LabelFunction | Mapping[str, Any],
+    horizon: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+    render_mode: str | None = None,
+    **options: Any,
+) -> TaskWrapper:
+    """The entry point of :data:`ENV_ID`: ``gymnasium.make(env_id, **env_kwargs)`` wrapped in a
+    :class:`TaskWrapper` (``options`` are its keywords: rewards, reward_mode, flatten, ...)."""
+    kwargs = dict(env_kwargs or {})
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
+    wrapper = TaskWrapper(gym.make(env_id, **kwargs), spec, labels, horizon=horizon, **options)
+    wrapper._spec_is_inner = True
+    return wrapper
+
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point="mitlc.gym.wrapper:make_task_env")

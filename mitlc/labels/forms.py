@@ -1,0 +1,224 @@
+"""The compiled label forms and the letter readers, what runs on every step (the
+declarations they are compiled from: :mod:`mitlc.labels`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+from mitlc.errors import MitlcError
+
+LabelFunction = Callable[[Any, dict[str, Any]], Iterable[str]]
+"""A labelling function: ``(obs, info) -> the true propositions``."""
+
+LetterReader = Callable[[Any, dict[str, Any]], int]
+"""``(obs, info) -> letter`` over given propositions (bit ``i`` for ``propositions[i]``)."""
+
+_CACHE_LIMIT = 1 << 16
+
+
+class LabelDeclarationError(MitlcError, ValueError):
+    """A label declaration is malformed, or does not fit the observation space; the message
+    starts with the field's path."""
+
+
+@runtime_checkable
+class Labels(Protocol):
+    """Labels that declare their propositions and read letters directly (what the wrapper
+    prefers to a bare callable)."""
+
+    @property
+    def propositions(self) -> tuple[str, ...]: ...
+    def __call__(self, obs: Any, info: Mapping[str, Any]) -> frozenset[str]: ...
+    def letter_reader(self, propositions: Sequence[str]) -> LetterReader: ...
+
+
+# -- the forms ---------------------------------------------------------------------------------
+
+
+def _part(obs: Any, key: str | None) -> Any:
+    return obs if key is None else obs[key]
+
+
+@dataclass(frozen=True, slots=True)
+class ObsIn:
+    """A discrete observation is one of ``values``."""
+
+    values: frozenset[int]
+    key: str | None = None
+
+    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+        """Whether the form holds."""
+        return int(_part(obs, self.key)) in self.values
+
+
+@dataclass(frozen=True, slots=True)
+class Decoded:
+    """Each checked field ``(divisor, radix, allowed)`` of a mixed-radix observation has one of
+    its allowed values (the field is ``obs // divisor % radix``), and each pair of fields in
+    ``equal`` (``(divisor, radix, divisor, radix)``) has the same value."""
+
+    checks: tuple[tuple[int, int, frozenset[int]], ...]
+    key: str | None = None
+    equal: tuple[tuple[int, int, int, int], ...] = ()
+
+    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+        """Whether the form holds."""
+        value = int(_part(obs, self.key))
+        return all(value // d % r in allowed for d, r, allowed in self.checks) and all(
+            value // d % r == value // e % s for d, r, e, s in self.equal
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class InBox:
+    """``low[j] <= obs[index[j]] <= high[j]`` for every ``j``."""
+
+    index: tuple[int, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+    key: str | None = None
+
+    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+        """Whether the form holds."""
+        x = _part(obs, self.key)
+        return all(
+            lo <= float(x[i]) <= hi
+            for i, lo, hi in zip(self.index, self.low, self.high, strict=True)
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class InDisc:
+    """``sum((obs[index[j]] - center[j]) ** 2) <= radius ** 2``."""
+
+    index: tuple[int, ...]
+    center: tuple[float, ...]
+    radius: float
+    key: str | None = None
+
+    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+        """Whether the form holds."""
+        x = _part(obs, self.key)
+        squared = sum((float(x[i]) - c) ** 2 for i, c in zip(self.index, self.center, strict=True))
+        return squared <= self.radius * self.radius
+
+
+@dataclass(frozen=True, slots=True)
+class InfoTrue:
+    """``info[key]`` is truthy."""
+
+    key: str
+
+    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+        """Whether the form holds."""
+        return bool(info.get(self.key))
+
+
+Form = ObsIn | Decoded | InBox | InDisc | InfoTrue
+
+
+# -- compiled labels ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class DeclaredLetters:
+    """Letters from compiled forms: ``checks[i] = (bit, forms)``, the bit set when any form
+    holds."""
+
+    checks: tuple[tuple[int, tuple[Form, ...]], ...]
+
+    def __call__(self, obs: Any, info: Mapping[str, Any]) -> int:
+        """The letter of ``(obs, info)``."""
+        letter = 0
+        for bit, forms in self.checks:
+            for form in forms:
+                if form.holds(obs, info):
+                    letter |= bit
+                    break
+        return letter
+
+
+@dataclass(slots=True)
+class CachedLetters:
+    """:class:`DeclaredLetters` of forms that read only a discrete observation, memoised per
+    observation (up to a bound on the entries)."""
+
+    letters: DeclaredLetters
+    cache: dict[int, int] = field(default_factory=dict)
+
+    def __call__(self, obs: Any, info: Mapping[str, Any]) -> int:
+        """The letter of ``(obs, info)``."""
+        cache = self.cache
+        if type(obs) is int:
+            found = cache.get(obs)
+            if found is not None:
+                return found
+        letter = self.letters(obs, info)
+        if len(cache) < _CACHE_LIMIT:
+            cache[int(obs)] = letter
+        return letter
+
+
+@dataclass(frozen=True, slots=True)
+class Labeller:
+    """Compiled declarative labels: ``forms[i]`` are the forms of ``propositions[i]`` (any of
+    them makes it true)."""
+
+    propositions: tuple[str, ...]
+    forms: tuple[tuple[Form, ...], ...]
+
+    def __call__(self, obs: Any, info: Mapping[str, Any]) -> frozenset[str]:
+        """The propositions true at ``(obs, info)``."""
+        return frozenset(
+            p
+            for p, forms in zip(self.propositions, self.forms, strict=True)
+            if any(f.holds(obs, info) for f in forms)
+        )
+
+    def letter_reader(self, propositions: Sequence[str]) -> DeclaredLetters | CachedLetters:
+        """A reader of letters over ``propositions`` (each must be declared here)."""
+        index = {p: i for i, p in enumerate(self.propositions)}
+        missing = [p for p in propositions if p not in index]
+        if missing:
+            raise undeclared(missing, self.propositions)
+        checks = tuple((1 << j, self.forms[index[p]]) for j, p in enumerate(propositions))
+        letters = DeclaredLetters(checks)
+        if all(isinstance(f, ObsIn | Decoded) and f.key is None for _, fs in checks for f in fs):
+            return CachedLetters(letters)
+        return letters
+
+
+@dataclass(frozen=True, slots=True)
+class CallableLetters:
+    """Letters from a labelling function, over ``propositions``."""
+
+    function: LabelFunction
+    propositions: tuple[str, ...]
+
+    def __call__(self, obs: Any, info: dict[str, Any]) -> int:
+        """The letter of ``(obs, info)``."""
+        true = self.function(obs, info)
+        if not isinstance(true, set | frozenset):
+            true = frozenset(true)
+        letter = 0
+        for i, p in enumerate(self.propositions):
+            if p in true:
+                letter |= 1 << i
+        return letter
+
+
+def undeclared(missing: Sequence[str], declared: Sequence[str]) -> LabelDeclarationError:
+    """The error of a task naming propositions that the labels do not declare."""
+    return LabelDeclarationError(
+        f"labels: the task's propositions {list(missing)} are not declared "
+        f"(declared: {sorted(declared)})"
+    )
+
+
+def letter_reader(labels: Labels | LabelFunction, propositions: Sequence[str]) -> LetterReader:
+    """A reader of letters over ``propositions``: the labels' own, or one calling the function."""
+    if isinstance(labels, Labels):
+        return labels.letter_reader(propositions)
+    return CallableLetters(labels, tuple(propositions))
