@@ -151,6 +151,13 @@ def test_the_flat_layout() -> None:
     assert obs.dtype == np.float32 and obs[0] == 1 and obs[:16].sum() == 1
     assert obs[16 + env.automaton_state] == 1 and obs[16 : 16 + q_count].sum() == 1
     assert obs[16 + q_count :].tolist() == [0.0] * sets
+    rng = np.random.default_rng(0)
+    for _ in range(30):  # the env's part is gymnasium's flatten of the env's observation
+        obs, _, terminated, truncated, _ = env.step(int(rng.integers(4)))
+        expected = gym.spaces.flatten(env.env.observation_space, env._env_obs)
+        assert obs[:16].tolist() == expected.tolist()
+        if terminated or truncated:
+            env.reset()
 
 
 # -- vector envs -------------------------------------------------------------------------------

@@ -341,7 +341,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def _flat(self, obs: Any, state: MonitorState) -> Any:
         flat = np.zeros(self._flat_size, dtype=np.float32)
         dim = self._env_dim
-        flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(self._env_space, obs))
+        space = self._env_space
+        if type(space) is spaces.Discrete:  # gymnasium's flatten: a one-hot (done here, fast)
+            flat[int(obs) - int(space.start)] = 1.0
+        else:
+            flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(space, obs))
         flat[dim + state.q] = 1.0
         base = dim + self.num_q
         for k in range(self._num_sets):

@@ -30,6 +30,11 @@ DENSE_LETTERS = 1 << 20
 a dense table; with more, by binary search among the letters seen."""
 
 
+TABLE_SETS = 8
+"""With at most this many acceptance sets the frontier rule is tabulated over every (frontier,
+marks) pair (4**8 entries); with more, it is computed."""
+
+
 class TaskAutomaton(Protocol):
     """What the monitor reads of an automaton (eager or lazy)."""
 
@@ -152,22 +157,24 @@ class TaskMonitor:
 
     def step(self, state: MonitorState, letter: int) -> Outcome:
         """A world step: the automaton reads ``letter`` (the position being left)."""
-        found = self._memo.get((state.q, letter))
+        q, frontier, rounds, steps = state
+        found = self._memo.get((q, letter))
         if found is None:
-            found = self._transition(state.q, letter)
-        q, marks, verdict = found
-        frontier, new, complete = rules.account(
-            state.frontier, marks, self.all_sets, self._popcount
-        )
-        rounds = state.rounds + complete
+            found = self._transition(q, letter)
+        target, marks, verdict = found
+        if self._account_rows is None:
+            after, new, complete = rules.account(frontier, marks, self.all_sets, self._popcount)
+        else:
+            after, new, complete = self._account_rows[frontier * self._sets_size + marks]
+        rounds += complete
         return Outcome(
-            MonitorState(q, frontier, rounds, state.steps + 1),
+            MonitorState(target, after, rounds, steps + 1),
             marks,
             new,
-            float(rules.reward(new, verdict, self.rewards)),
+            self._reward_list[new * 3 + verdict],
             verdict,
-            bool(rules.terminated(verdict)),
-            bool(rules.success(verdict, rounds, self.num_sets)),
+            self._terminated_list[verdict],
+            self._success_list[verdict * 2 + (rounds > 0)],
         )
 
     def jump(self, state: MonitorState, index: int) -> Outcome | None:
@@ -238,12 +245,21 @@ class TaskMonitor:
         """:meth:`step` for a batch of runs (the steps counter is the caller's)."""
         target, marks = self.successors(q, letters)
         verdict = self._verdict_array.take(target)
-        pair = frontier * (self.all_sets + 1) + marks
-        rounds = rounds + self._complete.take(pair)
-        new = self._new.take(pair)
+        if self._account_rows is None:
+            after, new, complete = rules.account(
+                frontier, marks, self.all_sets, self._popcount_array
+            )
+        else:
+            pair = frontier * self._sets_size + marks
+            after, new, complete = (
+                self._frontier_after.take(pair),
+                self._new.take(pair),
+                self._complete.take(pair),
+            )
+        rounds = rounds + complete
         return BatchOutcome(
             target,
-            self._frontier_after.take(pair),
+            after,
             rounds,
             marks,
             new,
@@ -254,18 +270,31 @@ class TaskMonitor:
         )
 
     def _rule_tables(self) -> None:
-        """The rules over their domains, for :meth:`read_batch`."""
-        size = self.all_sets + 1
-        frontier, marks = np.divmod(np.arange(size * size, dtype=np.int64), size)
-        after, new, complete = rules.account(frontier, marks, self.all_sets, self._popcount_array)
-        self._frontier_after, self._new = after, new
-        self._complete = np.asarray(complete, dtype=np.int64)
+        """The rules evaluated over their whole domains, once, as arrays (for
+        :meth:`read_batch`) and lists (for :meth:`step`): every (frontier, marks) pair when
+        there are at most :data:`TABLE_SETS` acceptance sets (beyond, the rules are called),
+        every (sets new, verdict) pair, every verdict."""
+        size = self._sets_size = self.all_sets + 1
+        self._account_rows: list[tuple[int, int, int]] | None = None
+        if self.num_sets <= TABLE_SETS:
+            frontier, marks = np.divmod(np.arange(size * size, dtype=np.int64), size)
+            after, new, complete = rules.account(
+                frontier, marks, self.all_sets, self._popcount_array
+            )
+            self._frontier_after, self._new = after, new
+            self._complete = np.asarray(complete, dtype=np.int64)
+            self._account_rows = list(
+                zip(after.tolist(), new.tolist(), self._complete.tolist(), strict=True)
+            )
         counts, verdicts = np.divmod(np.arange((self.num_sets + 1) * 3, dtype=np.int64), 3)
         self._reward = np.asarray(rules.reward(counts, verdicts, self.rewards), dtype=np.float64)
         codes = np.arange(3, dtype=np.int64)
         self._terminated = np.asarray(rules.terminated(codes), dtype=np.bool_)
         verdicts, done = np.divmod(np.arange(6, dtype=np.int64), 2)
         self._success = np.asarray(rules.success(verdicts, done, self.num_sets), dtype=np.bool_)
+        self._reward_list: list[float] = self._reward.tolist()
+        self._terminated_list: list[bool] = self._terminated.tolist()
+        self._success_list: list[bool] = self._success.tolist()
 
     # -- memo ----------------------------------------------------------------------------------
 
