@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -466,3 +467,36 @@ def test_gymnasium_is_imported_only_for_env_worlds() -> None:
         [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
     )
     assert out.stdout.strip() == "False"
+
+
+# --- the wrapper on the real env achieves the converted world's optimum ------------------------
+
+
+def test_the_checked_optimum_is_what_the_wrapped_env_achieves() -> None:
+    """The finite-horizon optimal policy of the converted FrozenLake world, followed in
+    ``TaskWrapper(gym.make("FrozenLake-v1"))`` (the real env, its own randomness, the
+    wrapper's labels), succeeds as often as ``pmax_horizon`` says (within 4 standard errors)."""
+    from mitlc.gym import TaskWrapper
+    from mitlc.product import ProductEnv
+    from tests.test_env import assert_agrees, optimal_actions
+
+    path = ROOT / "specs" / "gym" / "frozenlake4x4.yaml"
+    world = replace(load_world(path), horizon=30)
+    automaton = translate(parse("!hole U[0,25] goal"))
+    exact, history = pmax_horizon(build_product(world, automaton), world.horizon)
+    table, ids = optimal_actions(ProductEnv(world, automaton), history)
+    labels = {"goal": {"obs": [15]}, "hole": {"obs": [5, 7, 11, 12]}}
+    inner = gym.make("FrozenLake-v1", map_name="4x4", is_slippery=True)
+    env = TaskWrapper(inner, automaton, labels, horizon=world.horizon)
+    episodes, wins, num_q = 3000, 0, len(automaton.states)
+    for episode in range(episodes):
+        obs, info = env.reset(seed=episode)
+        while True:
+            x = ids[obs["env"] * num_q + obs["automaton"]]
+            action = table[world.horizon - env.steps][obs["frontier"]][x]
+            obs, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        wins += info["success"]
+    assert 0.2 < exact < 0.9
+    assert_agrees(exact, wins / episodes, episodes)
