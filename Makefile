@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded bench-task lint golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -53,6 +53,14 @@ bench-check: $(STAMP)
 # The paper's three case studies trained and measured beside the optimum (about 13 minutes).
 bench-learn: $(STAMP)
 	$(BIN)/python bench/learn_bench.py
+
+# The task as a component (a minute): the batched monitor's letters per second beside the
+# scalar one, the gymnasium wrapper's steps per second beside bare FrozenLake, and the lazy
+# automaton beside the eager translation on a 12-room deadline sequence (with mitlc check).
+bench-task: $(STAMP)
+	$(BIN)/python bench/monitor_bench.py
+	$(BIN)/python bench/wrapper_bench.py
+	$(BIN)/python bench/lazy_bench.py
 
 # Tabular steps per second: the vectorised simulator beside a gymnasium step loop (15 s).
 bench-throughput: $(STAMP)
