@@ -63,11 +63,11 @@ def epsilon_at(fraction: float, start: float, end: float, decay: float) -> float
     return end + (start - end) * max(0.0, 1.0 - fraction / decay)
 
 
-def step_discounts(step: Step, discount: Discount) -> FloatArray:
+def step_discounts(accepting: BoolArray, discount: Discount) -> FloatArray:
     """Each transition's discount: ``gamma``, or ``gamma_accept`` on accepting steps."""
     if discount.mode == "accepting":
-        return np.where(step.accepting, discount.gamma_accept, discount.gamma)
-    return np.full(len(step.reward), discount.gamma)
+        return np.where(accepting, discount.gamma_accept, discount.gamma)
+    return np.full(len(accepting), discount.gamma)
 
 
 def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
@@ -108,12 +108,25 @@ def potential(tables: Tables, automaton: DigitalAutomaton, scale: float) -> Floa
 def learning_signal(
     step: Step, before: IntArray, config: TrainConfig, phi: FloatArray | None
 ) -> tuple[FloatArray, FloatArray]:
-    """The reward a learner maximises and the discount of each transition: the world's reward,
-    plus ``gamma * phi(next) - phi(before)`` with shaping on."""
-    gammas = step_discounts(step, config.discount)
-    reward = step.reward
+    """The reward a learner maximises and the discount of each transition of ``step``
+    (:func:`transition_signal`)."""
+    return transition_signal(step.reward, step.accepting, before, step.next_state, config, phi)
+
+
+def transition_signal(
+    reward: FloatArray,
+    accepting: BoolArray,
+    before: IntArray,
+    after: IntArray,
+    config: TrainConfig,
+    phi: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """The reward a learner maximises and the discount of each transition ``before -> after``
+    (product states): the world's reward, plus ``gamma * phi(after) - phi(before)`` with
+    shaping on."""
+    gammas = step_discounts(accepting, config.discount)
     if phi is not None:
-        reward = reward + gammas * phi[step.next_state] - phi[before]
+        reward = reward + gammas * phi[after] - phi[before]
     return reward, gammas
 
 

@@ -66,6 +66,9 @@ class QConfig:
     initial_value: float = 100.0
     """Optimistic when at least the largest return (the paper's rewards are 100): untried
     actions look good, which drives exploration to the rare successes of a timed task."""
+    crm: bool = False
+    """Counterfactual experience (:mod:`mitlc.learn.crm`): every world step also updates every
+    other automaton state and frontier it tells about."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -20,11 +20,12 @@ from mitlc.learn.base import (
     Learner,
     Policy,
     epsilon_at,
-    learning_signal,
     masked_argmax,
     random_valid,
+    transition_signal,
 )
 from mitlc.learn.config import QConfig, TrainConfig
+from mitlc.learn.crm import Batch, Counterfactuals, concatenate, select
 from mitlc.learn.vec import Step, Tables, VecProduct
 from mitlc.worlds.model import FloatArray, IntArray
 
@@ -59,8 +60,11 @@ class QLearner(Learner):
         config: TrainConfig,
         rng: np.random.Generator,
         phi: FloatArray | None = None,
+        counterfactuals: Counterfactuals | None = None,
     ) -> None:
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
+        self.counterfactuals = counterfactuals
+        """With them (``q.crm``), counterfactual experience (:mod:`mitlc.learn.crm`)."""
         self.settings: QConfig = config.q
         self.num_envs = self.settings.num_envs
         shape = (tables.all_sets + 1, tables.num_states, tables.num_actions)
@@ -73,7 +77,9 @@ class QLearner(Learner):
         return self._epsilon
 
     def train_step(self, env: VecProduct, fraction: float) -> Step:
-        """One epsilon-greedy step of every episode and its update."""
+        """One epsilon-greedy step of every episode and its update (with counterfactual
+        experience on: the update of every automaton state and frontier the world steps
+        tell about, :mod:`mitlc.learn.crm`)."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         state, mask = env.state, env.mask
@@ -82,17 +88,49 @@ class QLearner(Learner):
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy)
         step = env.step(actions)
-        reward, gammas = learning_signal(step, state, self.config, self.phi)
-        after = self.q_table[step.next_mask, step.next_state]
-        best = np.where(self.tables.valid[step.next_state], after, -np.inf).max(axis=1)
-        best = np.where(step.terminated, 0.0, best)
+        batch = Batch(
+            mask, state, actions, step.reward, step.accepting, step.terminated, step.next_mask,
+            step.next_state,
+        )  # fmt: skip
+        if self.counterfactuals is not None:
+            extra = self.counterfactuals.of(state, actions, step.next_state)
+            world = actions < self.tables.num_world_actions
+            told = world & (self.tables.world_state[step.next_state] >= 0)
+            batch = concatenate(select(batch, ~told), extra)
         alpha = s.alpha + (s.alpha_end - s.alpha) * min(1.0, fraction)
-        flat = np.ravel_multi_index((mask, state, actions), self.q_table.shape)
-        keys, inverse, counts = np.unique(flat, return_inverse=True, return_counts=True)
-        targets = np.bincount(inverse, weights=reward + gammas * best) / counts
-        table = self.q_table.reshape(-1)
-        table[keys] += alpha * (targets - table[keys])
+        self._update(batch, alpha)
         return step
+
+    def _update(self, batch: Batch, alpha: float) -> None:
+        """Move each (mask, state, action) of ``batch`` toward the mean of its targets
+        ``r + gamma * max_a' Q(next)`` (0 after a terminal step)."""
+        reward, gammas = transition_signal(
+            batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
+        )
+        best = np.where(batch.terminated, 0.0, self._values(batch.next_mask, batch.next_state))
+        flat = np.ravel_multi_index((batch.mask, batch.state, batch.action), self.q_table.shape)
+        table = self.q_table.reshape(-1)
+        if table.size <= 4 * len(flat):  # many updates (counterfactuals): count in place
+            counts = np.bincount(flat, minlength=table.size)
+            sums = np.bincount(flat, weights=reward + gammas * best, minlength=table.size)
+            keys = np.flatnonzero(counts)
+            targets = sums[keys] / counts[keys]
+        else:
+            keys, inverse, counted = np.unique(flat, return_inverse=True, return_counts=True)
+            targets = np.bincount(inverse, weights=reward + gammas * best) / counted
+        table[keys] += alpha * (targets - table[keys])
+
+    def _values(self, mask: IntArray, state: IntArray) -> FloatArray:
+        """``max_a Q[mask, state, a]`` over the valid actions: gathered row by row, or, for a
+        batch about as large as the table (counterfactuals), from the whole table at once."""
+        if self.q_table.size <= 4 * len(state) * self.q_table.shape[-1]:
+            valid = self.tables.valid[None, :, :]
+            values: FloatArray = np.where(valid, self.q_table, -np.inf).max(axis=-1)
+            found: FloatArray = values[mask, state]
+            return found
+        after = self.q_table[mask, state]
+        best: FloatArray = np.where(self.tables.valid[state], after, -np.inf).max(axis=1)
+        return best
 
     def state_dict(self) -> dict[str, Any]:
         """The table and the random state."""

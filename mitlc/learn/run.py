@@ -129,9 +129,15 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             "drqn on this world"
         )
     if config.algo == "q":
+        from mitlc.learn.crm import Counterfactuals
         from mitlc.learn.qlearning import QLearner
 
-        return QLearner(setting.tables, config, rng, phi)
+        crm = (
+            Counterfactuals.build(setting.product, setting.world, setting.automaton)
+            if config.q.crm
+            else None
+        )
+        return QLearner(setting.tables, config, rng, phi, crm)
     if config.algo == "dqn":
         from mitlc.learn.dqn import DQNLearner
 
