@@ -205,9 +205,9 @@ def test_accepting_discount_applies_on_accepting_steps_only() -> None:
         episode_return=np.zeros(2),
         episode_steps=np.zeros(2, dtype=np.int64),
     )
-    both = step_discounts(step, Discount(mode="accepting", gamma=0.999, gamma_accept=0.9))
+    both = step_discounts(step.accepting, Discount(mode="accepting", gamma=0.999, gamma_accept=0.9))
     assert both.tolist() == [0.9, 0.999]
-    assert step_discounts(step, Discount(gamma=0.95)).tolist() == [0.95, 0.95]
+    assert step_discounts(step.accepting, Discount(gamma=0.95)).tolist() == [0.95, 0.95]
 
 
 def test_distance_to_acceptance() -> None:
