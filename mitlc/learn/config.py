@@ -24,12 +24,14 @@ import math
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, TypeVar
+from typing import Any, ClassVar, Literal, TypeVar
 
 from mitlc.errors import MitlcError
 
-ALGORITHMS = ("q", "dqn", "drqn")
-Algorithm = Literal["q", "dqn", "drqn"]
+ALGORITHMS = ("q", "dqn", "drqn", "sb3-ppo", "sb3-dqn", "sb3-maskable-ppo", "sb3-recurrent-ppo")
+Algorithm = Literal[
+    "q", "dqn", "drqn", "sb3-ppo", "sb3-dqn", "sb3-maskable-ppo", "sb3-recurrent-ppo"
+]
 DEFAULT_EPISODES = {"q": 300_000, "dqn": 5_000, "drqn": 20_000}
 
 
@@ -87,6 +89,8 @@ class DQNConfig:
     """Vector steps between gradient steps."""
     target_update: int = 500
     """Gradient steps between target network copies."""
+    crm: bool = False
+    """Counterfactual experience (:mod:`mitlc.learn.crm`) in the replay memory."""
     double: bool = True
     epsilon_start: float = 1.0
     epsilon_end: float = 0.02
@@ -135,6 +139,60 @@ class DRQNConfig:
     """Feed the previous action (one-hot) to the recurrent cell with the observation."""
 
 
+# -- Stable-Baselines3 (mitlc.learn.sb3): the section of the sb3-* algorithms ----------------------
+
+SB3_STEPS = 100_000
+"""The default budget of an sb3 run, in environment steps."""
+
+
+@dataclass(frozen=True, slots=True)
+class SB3Config:
+    """Stable-Baselines3's algorithms (``sb3-ppo``, ``sb3-dqn``, ``sb3-maskable-ppo``,
+    ``sb3-recurrent-ppo``; :mod:`mitlc.learn.sb3`). Budgets count environment steps. A 0 where
+    :attr:`RANGES` allows it means SB3's own default for the algorithm."""
+
+    steps: int = SB3_STEPS
+    """The run's total environment steps (``total_timesteps``), also when resumed."""
+    num_envs: int = 1
+    log_every: int = 0
+    """Environment steps between lines of ``metrics.jsonl`` (default: a hundredth of steps)."""
+    checkpoint_every: int = 0
+    """Environment steps between checkpoints (default: a tenth of steps)."""
+    hidden: int = 64
+    layers: int = 2
+    """The MLP's hidden layers (``net_arch``; SB3's default is two of 64)."""
+    learning_rate: float = 0.0
+    """0: SB3's (3e-4 for the PPO family, 1e-4 for DQN)."""
+    n_steps: int = 0
+    """PPO family: steps per env per rollout; 0: SB3's (2048; 128 for recurrent PPO)."""
+    batch_size: int = 0
+    """Minibatch (PPO family) or replay batch (DQN); 0: SB3's (64; 128 recurrent; DQN 32)."""
+    n_epochs: int = 10
+    ent_coef: float = 0.0
+    buffer_size: int = 0
+    """DQN's replay capacity; 0: SB3's (1,000,000)."""
+    learning_starts: int = 100
+    exploration_fraction: float = 0.1
+    exploration_final_eps: float = 0.05
+    target_update_interval: int = 10_000
+
+    RANGES: ClassVar[dict[str, tuple[float, float]]] = {
+        "log_every": (0, math.inf),
+        "checkpoint_every": (0, math.inf),
+        "learning_rate": (0, math.inf),
+        "n_steps": (0, math.inf),
+        "batch_size": (0, math.inf),
+        "n_epochs": (1, math.inf),
+        "ent_coef": (0, math.inf),
+        "buffer_size": (0, math.inf),
+        "learning_starts": (0, math.inf),
+        "exploration_fraction": (0, 1),
+        "exploration_final_eps": (0, 1),
+        "target_update_interval": (1, math.inf),
+    }
+    """Allowed values by field (they replace the rules by name of :func:`_check_ranges`)."""
+
+
 @dataclass(frozen=True, slots=True)
 class TrainConfig:
     """Everything a run needs besides the world; saved as the run's ``config.json``."""
@@ -160,10 +218,14 @@ class TrainConfig:
     q: QConfig = field(default_factory=QConfig)
     dqn: DQNConfig = field(default_factory=DQNConfig)
     drqn: DRQNConfig = field(default_factory=DRQNConfig)
+    sb3: SB3Config = field(default_factory=SB3Config)
+    """The section of every ``sb3-*`` algorithm."""
 
     @property
-    def learner(self) -> QConfig | DQNConfig | DRQNConfig:
+    def learner(self) -> QConfig | DQNConfig | DRQNConfig | SB3Config:
         """The chosen algorithm's own section."""
+        if self.algo.startswith("sb3-"):
+            return self.sb3
         section: QConfig | DQNConfig | DRQNConfig = getattr(self, self.algo)
         return section
 
@@ -227,6 +289,11 @@ def _check_ranges(config: object, path: str) -> None:
             continue
         if isinstance(value, float) and not math.isfinite(value):
             raise ConfigError(f"{where}: expected a finite number, got {value!r}")
+        bounds = getattr(type(config), "RANGES", {}).get(f.name)
+        if bounds is not None:  # a section's own ranges replace the rules by name below
+            if not bounds[0] <= value <= bounds[1]:
+                raise ConfigError(f"{where}: expected a value in {list(bounds)}, got {value!r}")
+            continue
         if f.name == "seed" and not 0 <= value < 2**63:
             raise ConfigError(f"{where}: expected an integer from 0 to 2^63 - 1, got {value!r}")
         if f.name.startswith(("gamma", "epsilon")) and not 0.0 <= value <= 1.0:
@@ -239,6 +306,7 @@ def _check_ranges(config: object, path: str) -> None:
 
 _POSITIVE = {
     "episodes",
+    "steps",
     "log_every",
     "checkpoint_every",
     "keep_checkpoints",
@@ -314,10 +382,25 @@ def resolve(
     if episodes > 0:
         values.setdefault("log_every", max(1, episodes // 100))
         values.setdefault("checkpoint_every", max(1, episodes // 10))
+    if isinstance(algo, str) and algo.startswith("sb3-"):
+        _sb3_defaults(values)
     try:
         return _build(TrainConfig, values, "")
     except ConfigError as err:
         raise ConfigError(f"training.{err}") from None
+
+
+def _sb3_defaults(values: dict[str, Any]) -> None:
+    """An sb3 run's ``sb3.log_every`` and ``sb3.checkpoint_every`` from its ``sb3.steps``."""
+    section = values.get("sb3", {})
+    if not isinstance(section, Mapping):
+        return  # reported with its path by _build
+    section = dict(section)
+    steps = _coerce(section.get("steps", SB3_STEPS), int, "training.sb3.steps")
+    for name, share in (("log_every", 100), ("checkpoint_every", 10)):
+        if steps > 0 and _coerce(section.get(name, 0), int, f"training.sb3.{name}") == 0:
+            section[name] = max(1, steps // share)
+    values["sb3"] = section
 
 
 def _section_episodes(values: dict[str, Any]) -> dict[str, int]:
@@ -353,6 +436,7 @@ __all__ = [
     "DRQNConfig",
     "Discount",
     "QConfig",
+    "SB3Config",
     "TrainConfig",
     "from_data",
     "resolve",

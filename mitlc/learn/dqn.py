@@ -22,8 +22,16 @@ from typing import Any
 import numpy as np
 import torch
 
-from mitlc.learn.base import Learner, Policy, epsilon_at, learning_signal, random_valid
+from mitlc.learn.base import (
+    Learner,
+    Policy,
+    epsilon_at,
+    learning_signal,
+    random_valid,
+    transition_signal,
+)
 from mitlc.learn.config import DQNConfig, TrainConfig
+from mitlc.learn.crm import Batch, Counterfactuals
 from mitlc.learn.nets import (
     Encoder,
     Ring,
@@ -89,9 +97,13 @@ class DQNLearner(Learner):
         config: TrainConfig,
         rng: np.random.Generator,
         phi: FloatArray | None = None,
+        counterfactuals: Counterfactuals | None = None,
     ) -> None:
         configure_torch()
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
+        self.counterfactuals = counterfactuals
+        """With them (``dqn.crm``), every world step also stores the transitions of every
+        other automaton state and frontier it tells about (:mod:`mitlc.learn.crm`)."""
         self.settings: DQNConfig = config.dqn
         s = self.settings
         self.num_envs = s.num_envs
@@ -149,25 +161,51 @@ class DQNLearner(Learner):
         actions = self._act(env, automaton)
         step = env.step(actions)
         reward, gammas = learning_signal(step, state, self.config, self.phi)
-        self.replay.add(
-            {
-                "observation": observation,
-                "automaton": automaton,
-                "mask": mask,
-                "action": actions,
-                "reward": reward * s.reward_scale,
-                "gamma": gammas,
-                "terminated": step.terminated,
-                "next_observation": step.next_observation,
-                "next_automaton": self.encoder.automaton_of(step.next_state),
-                "next_mask": step.next_mask,
-                "next_valid": self.tables.valid[step.next_state],
-            }
-        )
+        entries = {
+            "observation": observation,
+            "automaton": automaton,
+            "mask": mask,
+            "action": actions,
+            "reward": reward * s.reward_scale,
+            "gamma": gammas,
+            "terminated": step.terminated,
+            "next_observation": step.next_observation,
+            "next_automaton": self.encoder.automaton_of(step.next_state),
+            "next_mask": step.next_mask,
+            "next_valid": self.tables.valid[step.next_state],
+        }
+        if self.counterfactuals is not None:
+            told = (actions < self.tables.num_world_actions) & (
+                self.tables.world_state[step.next_state] >= 0
+            )
+            entries = {name: values[~told] for name, values in entries.items()}
+            self.replay.add(self._entries(self.counterfactuals.of(state, actions, step.next_state)))
+        self.replay.add(entries)
         self.vector_steps += 1
         if self.replay.size >= s.warmup_steps and self.vector_steps % s.train_every == 0:
             self._learn()
         return step
+
+    def _entries(self, batch: Batch) -> dict[str, Any]:
+        """Replay entries of transitions between product states (an MDP: the observation is
+        the cell)."""
+        reward, gammas = transition_signal(
+            batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
+        )
+        world = self.tables.world_state
+        return {
+            "observation": np.maximum(world[batch.state], 0),
+            "automaton": self.encoder.automaton_of(batch.state),
+            "mask": batch.mask,
+            "action": batch.action,
+            "reward": reward * self.settings.reward_scale,
+            "gamma": gammas,
+            "terminated": batch.terminated,
+            "next_observation": np.maximum(world[batch.next_state], 0),
+            "next_automaton": self.encoder.automaton_of(batch.next_state),
+            "next_mask": batch.next_mask,
+            "next_valid": self.tables.valid[batch.next_state],
+        }
 
     def _learn(self) -> None:
         """One gradient step on a replayed minibatch; copy to the target when it is due."""

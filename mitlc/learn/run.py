@@ -139,9 +139,15 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         )
         return QLearner(setting.tables, config, rng, phi, crm)
     if config.algo == "dqn":
+        from mitlc.learn.crm import Counterfactuals
         from mitlc.learn.dqn import DQNLearner
 
-        return DQNLearner(setting.tables, config, rng, phi)
+        crm = (
+            Counterfactuals.build(setting.product, setting.world, setting.automaton)
+            if config.dqn.crm
+            else None
+        )
+        return DQNLearner(setting.tables, config, rng, phi, crm)
     from mitlc.learn.drqn import DRQNLearner
 
     return DRQNLearner(setting.tables, config, rng, phi)
@@ -196,6 +202,10 @@ def load_learner(
 ) -> tuple[Setting, Learner]:
     """The run in ``directory``: its setting, and its learner as last checkpointed."""
     setting = load_setting(directory, deadline=deadline)
+    if setting.config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
+        from mitlc.learn import sb3
+
+        return setting, sb3.load_learner(directory, setting)
     _, learner_rng = _rngs(setting.config.seed)
     learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
     _restore(directory, learner, env, _Tally())
@@ -304,6 +314,13 @@ def train(
     ``should_stop`` is polled after every step; when it says so, the run checkpoints and
     returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
     :func:`prepare`), not the training, which runs its episodes."""
+    if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
+        from mitlc.learn import sb3
+
+        return sb3.train(
+            world_path, config, out, spec=spec, resume=resume, progress=progress,
+            should_stop=should_stop, deadline=deadline,
+        )  # fmt: skip
     directory = Path(out)
     setting = prepare(Path(world_path), config, spec, deadline=deadline)
     if resume:
