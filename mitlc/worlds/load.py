@@ -3,7 +3,10 @@
 A world file declares a grid (``grid:``) or names a finite gymnasium environment (``env:``,
 :mod:`mitlc.worlds.gym_world`); the passes below are the grid's, and an env world file goes
 through the same three (its whole-file checks in :func:`mitlc.worlds.gym_world.check_file`),
-then has its env made and converted.
+then has its env made and converted. A continuous world (``plane:``, :mod:`mitlc.worlds.plane`)
+goes through the same three (:mod:`mitlc.worlds.plane_schema`) and becomes a
+:class:`~mitlc.worlds.plane.PlaneWorld` (:func:`load_plane_world`); it is not finite, so
+:func:`load_world` refuses it once it is found valid.
 
 Three passes, each reporting every problem it finds before giving up: read the YAML (syntax
 errors and duplicate keys, with line and column), check its shape with the pydantic models of
@@ -29,7 +32,7 @@ from mitlc.errors import MitlcError, SpecError, locate
 from mitlc.inputs import bad_utf8, read_head
 from mitlc.limits import MAX_WORLD_BYTES
 from mitlc.syntax import atoms, parse, read_spec
-from mitlc.worlds import gym_world, safe_yaml
+from mitlc.worlds import gym_world, plane_schema, safe_yaml
 from mitlc.worlds.grid import (
     FieldPath,
     Layout,
@@ -40,6 +43,8 @@ from mitlc.worlds.grid import (
     transitions,
 )
 from mitlc.worlds.model import Observations, Rewards, World
+from mitlc.worlds.plane import PlaneWorld, build_plane_world
+from mitlc.worlds.plane_schema import PlaneWorldFile
 from mitlc.worlds.schema import (
     ENV_MODELS,
     MODELS,
@@ -237,11 +242,14 @@ def read_world_file(path: str | Path) -> WorldFile:
     return _read(Path(path))[0]
 
 
-def read_any_world_file(path: str | Path) -> WorldFile | EnvWorldFile:
-    """The validated contents of the world file at ``path``, a grid world or an env world
-    (the env is not made: see :func:`load_world`); a :class:`WorldError` if it is bad."""
+def read_any_world_file(path: str | Path) -> WorldFile | EnvWorldFile | PlaneWorldFile:
+    """The validated contents of the world file at ``path``, a grid world, an env world (the
+    env is not made: see :func:`load_world`) or a plane world; a :class:`WorldError` if it is
+    bad."""
     path = Path(path)
     source = _mapping(path)
+    if is_plane_file(source.data):
+        return _read_plane(path, source)
     if is_env_file(source.data):
         return _read_env(path, source)
     return _read_grid(path, source)[0]
@@ -257,6 +265,17 @@ def is_env_file(data: object) -> bool:
     """Whether a world file's YAML (its value) names a gymnasium env (``env:``) rather than a
     grid."""
     return isinstance(data, dict) and "env" in data
+
+
+def is_plane_world(path: str | Path) -> bool:
+    """Whether the world file at ``path`` declares a continuous world (``plane:``; a
+    :class:`WorldError` if it is not a readable mapping)."""
+    return is_plane_file(_mapping(Path(path)).data)
+
+
+def is_plane_file(data: object) -> bool:
+    """Whether a world file's YAML (its value) declares a continuous world (``plane:``)."""
+    return isinstance(data, dict) and "plane" in data
 
 
 def _mapping(path: Path) -> _Source:
@@ -275,6 +294,9 @@ def _read(path: Path) -> tuple[WorldFile, Layout, _Source]:
     if is_env_file(source.data):
         message = "this is a gymnasium env world, where a grid world (grid: ...) is needed"
         raise WorldError(str(path), [source.locate(("env",), message, key=True)])
+    if is_plane_file(source.data):
+        message = "this is a continuous world, where a grid world (grid: ...) is needed"
+        raise WorldError(str(path), [source.locate(("plane",), message, key=True)])
     return _read_grid(path, source)
 
 
@@ -307,6 +329,80 @@ def _read_env(path: Path, source: _Source) -> EnvWorldFile:
     if found:
         raise WorldError(filename, [source.locate(p, m) for p, m in found])
     return world
+
+
+def _read_plane(path: Path, source: _Source) -> PlaneWorldFile:
+    """A plane world file's shape and whole-file checks (:func:`plane_schema.check_file`)."""
+    filename = str(path)
+    try:
+        world = PlaneWorldFile.model_validate(source.data)
+    except ValidationError as err:
+        problems = []
+        for p, m, k in _plane_problems(err):
+            if p in (("grid",), ("env",)) and m.startswith("unknown field"):
+                m = "a world has one of grid:, env: or plane:, not two"
+            problems.append(source.locate(p, m, key=k))
+        raise WorldError(filename, problems) from None
+    found = plane_schema.check_file(world)
+    if found:
+        raise WorldError(filename, [source.locate(p, m) for p, m in found])
+    return world
+
+
+def _plane_problems(error: ValidationError) -> list[tuple[FieldPath, str, bool]]:
+    """:func:`from_pydantic` for a plane world file: its unions' tags dropped from the path."""
+    found = []
+    for item in error.errors():
+        loc, kind, ctx = item["loc"], item["type"], item.get("ctx") or {}
+        at_key = loc[-1] == "[key]"
+        tags = plane_schema.tag_positions(loc)
+        path = tuple(x for i, x in enumerate(loc) if i not in tags and x != "[key]")
+        if kind == "extra_forbidden":
+            found.append((path, plane_schema.unknown_field(path), True))
+        else:
+            found.append((path, _message(kind, item["msg"], item.get("input"), ctx), at_key))
+    return found
+
+
+def _load_plane(path: Path, source: _Source, task: str | None) -> PlaneWorld:
+    """Build the world of a plane world file."""
+    world = _read_plane(path, source)
+    spec, spec_source, propositions = _load_spec(world, path, source, task)
+    missing = [p for p in propositions if p not in world.labels]
+    if missing:
+        known = ", ".join(sorted(world.labels)) or "none"
+        problems = [
+            _unlabelled(source, spec, spec_source, f"proposition {p!r} labels no region", known)
+            for p in missing
+        ]
+        raise WorldError(str(path), problems)
+    return build_plane_world(
+        world,
+        name=world.name or path.stem,
+        spec=spec,
+        spec_source=spec_source,
+        propositions=propositions,
+    )
+
+
+def load_plane_world(path: str | Path, spec: str | None = None) -> PlaneWorld:
+    """Load, validate and build the continuous world (``plane:``) at ``path``; a
+    :class:`WorldError` if it is bad or not a plane world. ``spec`` replaces the file's task, as
+    for :func:`load_world`."""
+    path = Path(path)
+    source = _mapping(path)
+    if not is_plane_file(source.data):
+        kind = "a gymnasium env world" if is_env_file(source.data) else "a grid world"
+        message = f"this is {kind}, where a continuous world (plane: ...) is needed"
+        raise WorldError(str(path), [source.locate((), message)])
+    return _load_plane(path, source, spec)
+
+
+NOT_FINITE_PLANE = (
+    "a continuous world is not a finite world: it cannot be checked exactly (learn it through "
+    "the task wrapper: mitlc.worlds.plane_env.make_plane_env)"
+)
+"""Why :func:`load_world` refuses a valid plane world."""
 
 
 def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
@@ -348,9 +444,14 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
 
     A world file naming a gymnasium env (``env:``) is converted by
     :mod:`mitlc.worlds.gym_world`: an env without a transition table is a :class:`WorldError`
-    at ``env.id`` (not a finite world)."""
+    at ``env.id`` (not a finite world). A continuous world (``plane:``) is a
+    :class:`WorldError` at ``plane``, once every problem of the file is reported: it is not
+    finite (:func:`load_plane_world` loads it)."""
     path = Path(path)
     source = _mapping(path)
+    if is_plane_file(source.data):
+        _load_plane(path, source, spec)
+        raise WorldError(str(path), [source.locate(("plane",), NOT_FINITE_PLANE, key=True)])
     if is_env_file(source.data):
         return _load_env_world(path, source, spec)
     world, layout, source = _read_grid(path, source)
@@ -413,7 +514,10 @@ def _reason(err: OSError | ValueError) -> str:
 
 
 def _load_spec(
-    world: WorldFile | EnvWorldFile, path: Path, source: _Source, task: str | None = None
+    world: WorldFile | EnvWorldFile | PlaneWorldFile,
+    path: Path,
+    source: _Source,
+    task: str | None = None,
 ) -> tuple[str, str, tuple[str, ...]]:
     """The spec's text, where it came from, and its propositions (sorted); ``task``, when given,
     in place of the file's."""
