@@ -160,19 +160,19 @@ def train_command(
         from mitlc.syntax import to_text
 
         formula = to_text(load_formula(spec, None))
+    sb3 = config.algo.startswith("sb3-")  # Stable-Baselines3's runs count environment steps
     with _StopFlag() as stop, _progress_display(quiet) as display:
         tasks: list[Any] = []  # the bar appears with the first progress, once the run is set up
 
         def show(p: Any) -> None:
             if not tasks:
+                total = config.sb3.steps if sb3 else config.episodes
                 tasks.append(
-                    display.add_task(
-                        config.algo, total=config.episodes, success=0.0, ret=0.0, epsilon=1.0
-                    )
+                    display.add_task(config.algo, total=total, success=0.0, ret=0.0, epsilon=1.0)
                 )
             display.update(
                 tasks[0],
-                completed=min(p.episodes, p.total),
+                completed=min(p.steps if sb3 else p.episodes, p.total),
                 success=p.success_rate,
                 ret=p.mean_return,
                 epsilon=p.epsilon,

@@ -64,7 +64,7 @@ def test_a_learner_section_budget_wins_when_that_learner_runs() -> None:
     ("training", "overrides", "message"),
     [
         ({"q": {"alpah": 1}}, {}, r"training\.q\.alpah: unknown setting \(expected one of"),
-        ({"algo": "ppo"}, {}, r"training\.algo: expected one of q, dqn, drqn, sb3-ppo, .*got 'ppo'"),
+        ({"algo": "ppo"}, {}, r"training\.algo: expected one of q, dqn, drqn, sb3-ppo, .*'ppo'"),
         ({}, {"q.alpha": "fast"}, r"training\.q\.alpha: expected a number, got 'fast'"),
         ({}, {"seed": "1.5"}, r"training\.seed: expected an integer, got '1.5'"),
         ({"discount": {"gamma": 1.5}}, {}, r"training\.discount\.gamma: expected a value in"),

@@ -405,3 +405,12 @@ def test_grid_env_draws_its_start() -> None:
     assert set(starts) == {0, 3} and env.world_state == starts[-1]
     assert [env.reset(seed=seed)[1]["state"] for seed in range(40)] == starts
     assert ProductEnv(base.world, base.automaton).reset(seed=1)[1]["state"] == base.world.start
+
+
+def test_an_env_time_limit_below_the_horizon_is_refused() -> None:
+    """FrozenLake-v1 stops at 100 steps by itself: with a horizon of 110, a pending safety task
+    cut there would count as a success; the wrapper refuses it, and accepts the limit lifted."""
+    with pytest.raises(TaskWrapperError, match=r"own time limit \(100 steps\).*horizon \(110\)"):
+        TaskWrapper(gym.make("FrozenLake-v1"), "!hole U[0,100] goal", LAKE, horizon=110)
+    lifted = gym.make("FrozenLake-v1", max_episode_steps=110)
+    assert TaskWrapper(lifted, "!hole U[0,100] goal", LAKE, horizon=110).horizon == 110

@@ -116,6 +116,14 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             raise TaskWrapperError(f"horizon: expected a positive integer, got {horizon!r}")
         if reward_mode not in ("replace", "add"):
             raise TaskWrapperError(f"reward_mode: expected 'replace' or 'add', got {reward_mode!r}")
+        limit = _time_limit(env)
+        if limit is not None and limit < horizon:
+            raise TaskWrapperError(
+                f"horizon: the env's own time limit ({limit} steps) would end episodes before "
+                f"the task's horizon ({horizon}), counting an undecided run as success so far; "
+                f"make it with gymnasium.make(..., max_episode_steps={horizon}) or give "
+                f"horizon={limit}"
+            )
         if env_key in ("automaton", "frontier"):
             raise TaskWrapperError(f"env_key: {env_key!r} is the name of the task's part")
         automaton = translate(parse(spec, "<spec>")) if isinstance(spec, str) else spec
@@ -373,6 +381,17 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["invalid_action"] = invalid
         info["automaton_state"] = state.q
         return info
+
+
+def _time_limit(env: gym.Env[Any, Any]) -> int | None:
+    """The smallest ``TimeLimit`` among ``env``'s wrappers (read from the wrappers themselves:
+    asking for ``env.spec`` would cache it before ``gymnasium.make`` sets the whole's)."""
+    limits = []
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, gym.wrappers.TimeLimit):
+            limits.append(int(env._max_episode_steps))
+        env = env.env
+    return min(limits, default=None)
 
 
 def make_task_env(

@@ -4,14 +4,17 @@
 A world file may say::
 
     training:
-      algo: q            # q | dqn | drqn (default: q for an MDP, drqn for a POMDP)
+      algo: q            # q | dqn | drqn (default: q for an MDP, drqn for a POMDP), or
+                         # sb3-ppo | sb3-dqn | sb3-maskable-ppo | sb3-recurrent-ppo
       episodes: 20000
       q: {alpha: 0.2}    # the learner's own section: QConfig, DQNConfig or DRQNConfig
       dqn: {episodes: 40000, initial_value: 100}
 
 A section's ``episodes`` is that learner's budget: it wins over the top-level ``episodes`` when
 the learner runs (so ``--algo dqn`` on a file tuned for ``q`` does not inherit its budget), and
-an ``episodes`` override (``--episodes``) wins over both.
+an ``episodes`` override (``--episodes``) wins over both. The ``sb3-*`` algorithms (Stable-
+Baselines3, :mod:`mitlc.learn.sb3`) share the ``sb3`` section (:class:`SB3Config`), whose
+budget is ``sb3.steps`` environment steps.
 
 Every learner's config is a frozen dataclass whose fields have defaults; :func:`resolve`
 checks names and types and fills the rest in.

@@ -48,13 +48,22 @@ class Encoder:
     bits and, with ``previous_action``, a one-hot of the previous action (an extra slot for
     "none", the first step of an episode)."""
 
-    def __init__(self, tables: Tables, previous_action: bool = False) -> None:
+    def __init__(
+        self,
+        tables: Tables,
+        previous_action: bool = False,
+        num_automaton_states: int | None = None,
+    ) -> None:
+        """``num_automaton_states``: the automaton block's width (default: the states the
+        product has; the gymnasium wrapper's flat observation has one for every automaton
+        state)."""
         self.automaton = np.maximum(tables.automaton_state, 0)
         self.num_sets = tables.num_sets
         self.previous_action = previous_action
         self.obs_offset = 0
         self.aut_offset = tables.num_observations
-        self.mask_offset = self.aut_offset + tables.num_automaton_states
+        width = num_automaton_states or tables.num_automaton_states
+        self.mask_offset = self.aut_offset + width
         self.action_offset = self.mask_offset + tables.num_sets
         self.size = self.action_offset + (tables.num_actions + 1 if previous_action else 0)
 

@@ -64,7 +64,12 @@ class ProductEnv(TaskWrapper):
     env: GridEnv
 
     def __init__(
-        self, world: World, automaton: DigitalAutomaton, *, render_mode: str | None = None
+        self,
+        world: World,
+        automaton: DigitalAutomaton,
+        *,
+        render_mode: str | None = None,
+        flatten: bool = False,
     ) -> None:
         automaton_letters(world, automaton.propositions)  # the world must label the task
         super().__init__(
@@ -75,6 +80,7 @@ class ProductEnv(TaskWrapper):
             horizon=world.horizon,
             reward_mode="add",
             env_key="world",
+            flatten=flatten,
         )
         self.world: World = world
         self.automaton: DigitalAutomaton = automaton

@@ -1,0 +1,348 @@
+"""Stable-Baselines3 as a backend: ``mitlc train WORLD --algo sb3-ppo | sb3-dqn |
+sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc run directory.
+
+* **The env** is the world's wrapped env, :class:`~mitlc.product.env.ProductEnv` (a
+  :class:`~mitlc.gym.TaskWrapper` on the world) with the wrapper's flat observation: one
+  float32 vector, the one-hot world observation, the one-hot automaton state and the frontier's
+  bits (the layout of ``TaskWrapper(..., flatten=True)`` and of mitlc's own deep learners), so
+  every algorithm uses ``MlpPolicy`` (``MlpLstmPolicy`` for recurrent PPO). The ``Dict``
+  observation with ``MultiInputPolicy`` gives the network the same information (SB3 one-hot
+  encodes each ``Discrete`` part) at a higher cost per step (PPO on case 1: 14% slower), so
+  the flat form is used. ``sb3.num_envs`` copies run in SB3's ``DummyVecEnv`` (``make_vec_env``,
+  with its ``Monitor``); ``MaskablePPO`` reads the wrapper's ``action_masks()``.
+* **Settings**: the ``sb3`` section of the training settings
+  (:class:`~mitlc.learn.config.SB3Config`; a 0 means SB3's own default), the discount's
+  ``gamma``, and the run's ``seed`` (SB3's ``seed``). The budget is ``sb3.steps`` environment
+  steps, the run's total also when resumed; a PPO run ends at the first whole rollout past it.
+  SB3 learns with a constant discount and no shaping: other settings are refused.
+* **The run directory** is mitlc's (:mod:`mitlc.learn.run`): ``config.json``,
+  ``metrics.jsonl`` (a line every ``sb3.log_every`` steps from an SB3 callback: episodes,
+  steps, the success rate from ``info["is_success"]`` and the mean return of the episodes ended
+  since the last line, ``epsilon`` (DQN's exploration rate, 0 for the PPO family), seconds),
+  ``summary.json``, the lock, and checkpoints written by :mod:`mitlc.learn.checkpoint` (every
+  ``sb3.checkpoint_every`` steps, at the end and on Ctrl-C): the policy's ``state_dict()`` and
+  its optimiser's as safetensors, SB3's settings and counters as JSON; never SB3's zip, which
+  holds pickles.
+* **Resume** rebuilds the model from the settings and loads the policy, the optimiser and the
+  counters (``num_timesteps`` included, so the schedules go on where they were). It does not
+  replay the run exactly: the envs restart with new episodes (seeded by the seed plus the
+  steps), a PPO rollout in progress is collected again, and **sb3-dqn's replay memory is not
+  saved**: the resumed run refills it for ``sb3.learning_starts`` steps before it learns again.
+* **eval and plot** (:func:`load_learner`, called by :func:`mitlc.learn.run.load_learner`;
+  :mod:`mitlc.learn.sb3_policy`): the policy acts greedily (as ``deterministic=True``) among
+  the valid actions in mitlc's simulator of the product, the model of the wrapped env, fed the
+  same observation vector; so a run is reported as mitlc's learners are: success with a Wilson
+  interval beside ``pmax_horizon``, and for a memoryless policy on an MDP its exact success.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from mitlc.learn import checkpoint
+from mitlc.learn.base import Learner
+from mitlc.learn.config import TrainConfig
+from mitlc.learn.nets import configure_torch
+from mitlc.learn.run import (
+    CONFIG,
+    METRICS,
+    SUMMARY,
+    Progress,
+    RunError,
+    RunResult,
+    Setting,
+    _log,
+    _progress,
+    _save_config,
+    _Tally,
+    _truncate_metrics,
+    _write_json,
+    prepare,
+    read_config,
+)
+from mitlc.learn.rundir import locked
+from mitlc.learn.state import one_line, restore
+from mitlc.limits import Deadline
+from mitlc.product.env import ProductEnv
+
+Vectors = npt.NDArray[np.float32]
+
+ALGORITHMS = {
+    "sb3-ppo": ("stable_baselines3", "PPO", "MlpPolicy"),
+    "sb3-dqn": ("stable_baselines3", "DQN", "MlpPolicy"),
+    "sb3-maskable-ppo": ("sb3_contrib", "MaskablePPO", "MlpPolicy"),
+    "sb3-recurrent-ppo": ("sb3_contrib", "RecurrentPPO", "MlpLstmPolicy"),
+}
+"""mitlc's name of each backend: SB3's module, algorithm class and policy."""
+
+
+def algorithm(algo: str) -> tuple[Any, str]:
+    """The SB3 algorithm class and policy name of ``algo`` (a :class:`RunError` saying what to
+    install when SB3 is missing)."""
+    module, name, policy = ALGORITHMS[algo]
+    try:
+        return getattr(importlib.import_module(module), name), policy
+    except ImportError:
+        raise RunError(
+            f"--algo {algo} needs Stable-Baselines3 and sb3-contrib: pip install 'mitlc[sb3]'"
+        ) from None
+
+
+# -- the observation -------------------------------------------------------------------------------
+
+
+def wrapped_env(setting: Setting) -> ProductEnv:
+    """The env an sb3 run learns on: the world's product env with the wrapper's flat
+    observation (one-hot world observation, one-hot automaton state, frontier bits: the
+    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network)."""
+    return ProductEnv(setting.world, setting.automaton, flatten=True)
+
+
+def sb3_settings(config: TrainConfig) -> dict[str, Any]:
+    """The keywords given to the SB3 algorithm (beside the env, seed and device)."""
+    s = config.sb3
+    given: dict[str, Any] = {
+        "gamma": config.discount.gamma,
+        "policy_kwargs": {"net_arch": [s.hidden] * s.layers},
+    }
+    if config.algo == "sb3-dqn":
+        given.update(
+            learning_starts=s.learning_starts,
+            exploration_fraction=s.exploration_fraction,
+            exploration_final_eps=s.exploration_final_eps,
+            target_update_interval=s.target_update_interval,
+        )
+        optional: dict[str, float] = {"buffer_size": s.buffer_size}
+    else:
+        given.update(n_epochs=s.n_epochs, ent_coef=s.ent_coef)
+        optional = {"n_steps": s.n_steps}
+    optional.update(learning_rate=s.learning_rate, batch_size=s.batch_size)
+    given.update({name: value for name, value in optional.items() if value})
+    return given
+
+
+# -- the model as checkpointed state ---------------------------------------------------------------
+
+
+class ModelState:
+    """An SB3 model as :class:`~mitlc.learn.state.Stateful` data: settings, policy and optimiser
+    ``state_dict()``s (tensors), counters."""
+
+    COUNTERS = ("num_timesteps", "_n_updates", "_episode_num", "_n_calls")
+
+    def __init__(self, model: Any, config: TrainConfig) -> None:
+        self.model, self.settings = model, {"algo": config.algo, **sb3_settings(config)}
+
+    def state_dict(self) -> dict[str, Any]:
+        """The checkpointed part of the model."""
+        model = self.model
+        return {
+            "settings": self.settings,
+            "policy": dict(model.policy.state_dict()),
+            "optimizer": model.policy.optimizer.state_dict(),
+            "counters": {n.strip("_"): int(getattr(model, n, 0)) for n in self.COUNTERS},
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Load :meth:`state_dict` into the model."""
+        if saved["settings"] != self.settings:
+            raise ValueError("the checkpoint was made with other settings than the run's")
+        self.model.policy.load_state_dict(saved["policy"])
+        self.model.policy.optimizer.load_state_dict(saved["optimizer"])
+        for name in self.COUNTERS:
+            if hasattr(self.model, name):
+                setattr(self.model, name, int(saved["counters"][name.strip("_")]))
+
+
+# -- training --------------------------------------------------------------------------------------
+
+
+def train(
+    world_path: str | Path,
+    config: TrainConfig,
+    out: str | Path,
+    *,
+    spec: str | None = None,
+    resume: bool = False,
+    progress: Callable[[Progress], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    deadline: Deadline | None = None,
+) -> RunResult:
+    """Train ``config.algo`` (an ``sb3-*`` name) as :func:`mitlc.learn.run.train` trains
+    mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all."""
+    if config.discount.mode != "constant" or config.shaping:
+        raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
+    algorithm(config.algo)  # SB3 installed?
+    directory = Path(out)
+    setting = prepare(Path(world_path), config, spec, deadline=deadline)
+    if resume:
+        read_config(directory)
+    else:
+        directory.mkdir(parents=True, exist_ok=True)
+    with locked(directory):
+        _start(directory, setting, resume)
+        return _train(directory, setting, resume, progress, should_stop)
+
+
+def _start(directory: Path, setting: Setting, resume: bool) -> None:
+    """Check the locked run directory for a fresh run or a resumed one."""
+    if not resume:
+        if (directory / CONFIG).exists() or checkpoint.exists(directory):
+            raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
+        return
+    data, saved = read_config(directory)
+    config = setting.config
+    if replace(saved, episodes=config.episodes, sb3=replace(saved.sb3, steps=config.sb3.steps)) != (
+        config
+    ):
+        raise RunError(
+            f"{directory}: --resume with settings other than the run's own (only sb3.steps may "
+            "change)"
+        )
+    if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != setting.world.spec:
+        raise RunError(f"{directory}: --resume with another world or task than the run's")
+
+
+def _train(
+    directory: Path,
+    setting: Setting,
+    resume: bool,
+    progress: Callable[[Progress], None] | None,
+    should_stop: Callable[[], bool] | None,
+) -> RunResult:
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    config, s = setting.config, setting.config.sb3
+    configure_torch()
+    venv = make_vec_env(
+        lambda: wrapped_env(setting), s.num_envs, seed=config.seed, vec_env_cls=DummyVecEnv
+    )
+    cls, policy = algorithm(config.algo)
+    try:
+        model = cls(policy, venv, seed=config.seed, device="cpu", verbose=0, **sb3_settings(config))
+    except (ValueError, TypeError, AssertionError, MemoryError) as err:
+        where = setting.world_path
+        raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None
+    state, tally = ModelState(model, config), _Tally()
+    if resume:
+        loaded = restore(directory, {"model": state, "tally": tally}, unchecked=UNCHECKED)
+        if tally.steps != loaded.steps or model.num_timesteps != loaded.steps:
+            raise RunError(f"{loaded.files['json']}: the counters are not the checkpoint's steps")
+        if tally.steps >= s.steps:
+            raise RunError(
+                f"{directory}: the run already has {tally.steps:,} steps; sb3.steps is the "
+                f"run's total, so give more than {tally.steps:,} to go on"
+            )
+        model.set_random_seed(config.seed + tally.steps)  # new episodes, not the first ones
+        if config.algo == "sb3-dqn":  # the replay memory is not saved: refill it first
+            model.learning_starts = tally.steps + s.learning_starts
+        _truncate_metrics(directory / METRICS, tally.episodes)
+        (directory / SUMMARY).unlink(missing_ok=True)
+    _save_config(directory, setting)
+    run = _Run(directory, config, state, tally, progress, should_stop)
+    try:
+        with (directory / METRICS).open("a", encoding="utf-8") as run.metrics:
+            model.learn(s.steps - tally.steps, callback=run.callback(), reset_num_timesteps=False)
+            if run.logged_at != tally.steps:  # the last line, at the run's end or stop
+                _log(run.metrics, tally, run.epsilon())
+    finally:
+        run.save()
+    stopped = run.stopped and tally.steps < s.steps
+    if not stopped:
+        summary: dict[str, Any] = {"episodes": tally.episodes, "steps": tally.steps}
+        summary.update(seconds=round(tally.seconds, 3), success_rate=tally.last_rate)
+        summary["mean_return"] = tally.last_return
+        _write_json(directory / SUMMARY, summary)
+    return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped)
+
+
+UNCHECKED = ("model.optimizer.state",)
+"""A fresh optimiser has no moments yet; torch checks them against the network on loading."""
+
+
+class _Run:
+    """What the SB3 callback updates: the tally, metrics, checkpoints, progress and stopping."""
+
+    def __init__(
+        self,
+        directory: Path,
+        config: TrainConfig,
+        state: ModelState,
+        tally: _Tally,
+        progress: Callable[[Progress], None] | None,
+        should_stop: Callable[[], bool] | None,
+    ) -> None:
+        self.directory, self.config, self.state, self.tally = directory, config, state, tally
+        self.progress, self.should_stop = progress, should_stop
+        self.saved_at = tally.steps if tally.steps else -1
+        self.stopped, self.beat, self.logged_at = False, 0, tally.steps
+        self.metrics: Any = None
+        self.clock = time.perf_counter() - tally.seconds
+
+    def epsilon(self) -> float:
+        """DQN's exploration rate (0 for the PPO family, which explores by sampling)."""
+        return float(getattr(self.state.model, "exploration_rate", 0.0))
+
+    def save(self) -> None:
+        """Checkpoint, unless nothing changed since the last one."""
+        if self.tally.steps != self.saved_at:
+            data = {"model": self.state.state_dict(), "tally": self.tally.state_dict()}
+            checkpoint.save(self.directory, self.tally.steps, data, self.config.keep_checkpoints)
+            self.saved_at = self.tally.steps
+
+    def on_step(self, steps: int, dones: Any, infos: list[dict[str, Any]]) -> bool:
+        """After a vector step that brought the model to ``steps``: count the episodes that
+        ended, log, checkpoint, show progress; whether to go on."""
+        tally, s = self.tally, self.config.sb3
+        before, tally.steps = tally.steps, steps
+        for done, info in zip(dones, infos, strict=True):
+            if done:
+                tally.episodes += 1
+                tally.window_count += 1
+                tally.window_success += bool(info.get("is_success", False))
+                tally.window_return += float(info["episode"]["r"])
+        tally.seconds = time.perf_counter() - self.clock
+        epsilon = self.epsilon()
+        logged = steps // s.log_every > before // s.log_every
+        if logged:
+            _log(self.metrics, tally, epsilon)
+            self.logged_at = steps
+        if steps // s.checkpoint_every > before // s.checkpoint_every:
+            self.save()
+        self.beat += 1
+        if self.progress is not None and (logged or self.beat % 50 == 0):
+            self.progress(_progress(tally, s.steps, epsilon))
+        self.stopped = self.should_stop is not None and self.should_stop()
+        return not self.stopped
+
+    def callback(self) -> Any:
+        """An SB3 callback calling :meth:`on_step`."""
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        run = self
+
+        class Callback(BaseCallback):
+            def _on_step(self) -> bool:
+                return run.on_step(self.num_timesteps, self.locals["dones"], self.locals["infos"])
+
+        return Callback()
+
+
+# -- eval and plot ---------------------------------------------------------------------------------
+
+
+def load_learner(directory: Path, setting: Setting) -> Learner:
+    """The policy of the sb3 run in ``directory`` (:func:`mitlc.learn.sb3_policy.load_learner`),
+    for :func:`mitlc.learn.run.load_learner`."""
+    from mitlc.learn import sb3_policy
+
+    return sb3_policy.load_learner(directory, setting)

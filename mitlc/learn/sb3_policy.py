@@ -1,0 +1,161 @@
+"""The policy of a Stable-Baselines3 run for ``mitlc eval`` and ``mitlc plot``:
+``load_learner(directory, setting)``.
+
+The policy network alone is rebuilt from the run's settings (no algorithm, optimiser or replay
+memory) and loaded from the latest checkpoint (:mod:`mitlc.learn.checkpoint`: safetensors, no
+pickle). It acts greedily, as SB3's ``predict(obs, deterministic=True)`` does (the most
+probable action, or the largest Q-value), among the valid actions, in mitlc's simulator of the
+product (:class:`~mitlc.learn.vec.VecProduct`, the model of the wrapped env the run learned on),
+fed the observation vector of :class:`mitlc.learn.sb3.FlatObservation`. So an sb3 run is
+evaluated as mitlc's learners are (:mod:`mitlc.learn.evaluate`), and a memoryless policy on an
+MDP also gets its exact success probability (:meth:`SB3Policy.choices`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from mitlc.learn import checkpoint
+from mitlc.learn.base import Learner, Policy
+from mitlc.learn.nets import Encoder, build, configure_torch, greedy
+from mitlc.learn.run import RunError, Setting
+from mitlc.learn.sb3 import algorithm, sb3_settings, wrapped_env
+from mitlc.learn.state import Mismatch, conform
+from mitlc.learn.vec import Step, VecProduct
+from mitlc.worlds.model import IntArray
+
+CHUNK = 4096
+"""Observations per forward pass when every product state is evaluated."""
+
+
+class SB3Policy(Policy):
+    """An SB3 policy acting greedily in a :class:`VecProduct` (see the module docstring);
+    memoryless, so :meth:`choices` gives it for exact evaluation on an MDP."""
+
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
+        self.net, self.encoder, self.tables = net, encoder, setting.tables
+        self.dqn = setting.config.algo == "sb3-dqn"
+
+    def scores(self, x: torch.Tensor) -> torch.Tensor:
+        """Q-values (DQN) or action logits of the observation vectors ``x``."""
+        if self.dqn:
+            values: torch.Tensor = self.net.q_net(x)
+            return values
+        logits: torch.Tensor = self.net.get_distribution(x).distribution.logits
+        return logits
+
+    def act(self, env: VecProduct) -> IntArray:
+        """The greedy valid action of each episode."""
+        x = self.encoder(env.observation, self.encoder.automaton_of(env.state), env.mask)
+        with torch.no_grad():
+            return greedy(self.scores(x), env.valid_actions())
+
+    def choices(self) -> IntArray:
+        """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
+        (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success` (an MDP,
+        where the observation is the cell)."""
+        t = self.tables
+        cells = np.maximum(t.world_state, 0)
+        chosen = np.full((t.all_sets + 1, t.num_states), -1, dtype=np.int64)
+        for mask in range(t.all_sets + 1):
+            for start in range(0, t.num_states, CHUNK):
+                states = np.arange(start, min(start + CHUNK, t.num_states))
+                x = self.encoder(
+                    cells[states], self.encoder.automaton_of(states), np.full(len(states), mask)
+                )
+                with torch.no_grad():
+                    best = greedy(self.scores(x), t.valid[states])
+                chosen[mask, states] = t.choice[states, best]
+        chosen[:, t.world_state < 0] = -1
+        return chosen
+
+
+class SB3RecurrentPolicy(Policy):
+    """A recurrent PPO policy acting greedily in a :class:`VecProduct`, its LSTM state carried
+    over each episode and restarted with the next."""
+
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
+        self.net, self.encoder = net, encoder
+        self.reset(1)
+
+    def reset(self, num_envs: int) -> None:
+        """Fresh LSTM states for ``num_envs`` new episodes."""
+        layers, _, hidden = self.net.lstm_hidden_state_shape
+        self.lstm = (torch.zeros(layers, num_envs, hidden), torch.zeros(layers, num_envs, hidden))
+        self.starts = torch.ones(num_envs)
+
+    def act(self, env: VecProduct) -> IntArray:
+        """The greedy valid action of each episode."""
+        x = self.encoder(env.observation, self.encoder.automaton_of(env.state), env.mask)
+        with torch.no_grad():
+            distribution, self.lstm = self.net.get_distribution(x, self.lstm, self.starts)
+        self.starts = torch.zeros(env.num_envs)
+        return greedy(distribution.distribution.logits, env.valid_actions())
+
+    def observe(self, step: Step) -> None:
+        """Episodes that ended restart their LSTM state on the next action."""
+        self.starts[torch.from_numpy(step.done)] = 1.0
+
+
+class SB3Learner(Learner):
+    """A trained SB3 policy loaded for ``mitlc eval`` and ``mitlc plot`` (it does not train:
+    :func:`train` does)."""
+
+    def __init__(self, net: Any, setting: Setting) -> None:
+        self.net, self.setting = net, setting
+        self.num_envs = setting.config.sb3.num_envs
+        self.encoder = Encoder(
+            setting.tables, num_automaton_states=len(setting.automaton.states)
+        )  # the layout of the wrapper's flat observation, which the network was trained on
+
+    def train_step(self, env: VecProduct, fraction: float) -> Step:
+        """Not here: an sb3 run trains through :func:`train`."""
+        raise RunError("an sb3 run trains through mitlc.learn.sb3.train")
+
+    @property
+    def epsilon(self) -> float:
+        """No exploration: the policy is greedy."""
+        return 0.0
+
+    def state_dict(self) -> dict[str, Any]:
+        """The policy's weights."""
+        return {"policy": dict(self.net.state_dict())}
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Load :meth:`state_dict`."""
+        self.net.load_state_dict(saved["policy"])
+
+    def policy(self) -> Policy:
+        """The greedy policy, recurrent or memoryless."""
+        if self.setting.config.algo == "sb3-recurrent-ppo":
+            return SB3RecurrentPolicy(self.net, self.encoder, self.setting)
+        return SB3Policy(self.net, self.encoder, self.setting)
+
+
+def load_learner(directory: Path, setting: Setting) -> SB3Learner:
+    """The policy of the sb3 run in ``directory`` (its latest checkpoint), rebuilt from the
+    settings without its algorithm, optimiser or replay memory."""
+    configure_torch()
+    cls, name = algorithm(setting.config.algo)
+    env = wrapped_env(setting)
+    kwargs = sb3_settings(setting.config)["policy_kwargs"]
+    net = build(0, lambda: cls.policy_aliases[name](
+        env.observation_space, env.action_space, lambda _: 0.0, **kwargs
+    ))  # fmt: skip
+    net.set_training_mode(False)
+    loaded = checkpoint.load(directory)
+    saved = loaded.state.get("model")
+    template = {"policy": dict(net.state_dict())}
+    try:
+        if not isinstance(saved, dict) or "policy" not in saved:
+            raise Mismatch("model", "no policy in the checkpoint")
+        conform({"policy": saved["policy"]}, template, "model")
+    except Mismatch as err:
+        raise RunError(f"{loaded.files.get(err.kind, loaded.files['json'])}: {err}") from None
+    learner = SB3Learner(net, setting)
+    learner.load_state_dict(saved)
+    return learner
