@@ -24,6 +24,7 @@ from mitlc.learn.config import resolve
 from mitlc.learn.qlearning import QLearner
 from mitlc.learn.run import prepare
 from mitlc.learn.vec import VecProduct
+from mitlc.learn.vector import ProductVectorEnv
 from mitlc.product.env import ProductEnv
 
 WORLD = "specs/paper/case1.yaml"
@@ -66,6 +67,16 @@ def main() -> None:
             return 20 * vec.num_envs
 
         rows.append(("VecProduct.step, random actions", n, rate(simulate, args.seconds)))
+    for n in (1024, 16_384):
+        vector = ProductVectorEnv(setting.tables, n, seed=1)
+        vector.reset(seed=1)
+
+        def through_api(vector: ProductVectorEnv = vector) -> int:
+            for _ in range(20):
+                vector.step(random_valid(rng, vector.action_masks()))
+            return 20 * vector.num_envs
+
+        rows.append(("ProductVectorEnv.step (gymnasium API)", n, rate(through_api, args.seconds)))
     for n in (1024, 16_384):
         learner_config = resolve({}, {"q.num_envs": n}, discount=0.99, pomdp=False)
         learner = QLearner(setting.tables, learner_config, np.random.default_rng(2))
