@@ -209,14 +209,20 @@ def monitor(
 @app.command(name="schema")
 @reports_errors
 def schema_command(
-    kind: Annotated[str, typer.Argument(help="Which schema: 'world'.")] = "world",
+    kind: Annotated[
+        str,
+        typer.Argument(
+            help="Which schema: 'world' (a grid), 'env-world' (a gymnasium env) or "
+            "'plane-world' (a continuous room)."
+        ),
+    ] = "world",
 ) -> None:
     """Print the JSON schema of world files, for editors."""
-    if kind != "world":
-        raise UsageError(f"mitlc: unknown schema {kind!r}; the one schema is 'world'")
-    from mitlc.worlds import world_json_schema
+    from mitlc.worlds.schema import SCHEMA_KINDS, world_json_schema
 
-    typer.echo(json_dumps(world_json_schema()))
+    if kind not in SCHEMA_KINDS:
+        raise UsageError(f"mitlc: unknown schema {kind!r}; one of {', '.join(SCHEMA_KINDS)}")
+    typer.echo(json_dumps(world_json_schema(kind)))
 
 
 def _version(value: bool) -> None:

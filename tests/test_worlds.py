@@ -286,6 +286,8 @@ def schema_errors(value: Any, schema: dict[str, Any], root: dict[str, Any]) -> l
     kinds |= {"number": (int, float), "null": type(None)}
     errors: list[str] = []
     kind = schema.get("type")
+    if kind == "boolean":
+        return [] if isinstance(value, bool) else [f"{value!r} is not of type boolean"]
     if kind and (isinstance(value, bool) or not isinstance(value, kinds[kind])):
         return [f"{value!r} is not of type {kind}"]
     for key in ("anyOf", "oneOf"):
@@ -332,3 +334,23 @@ def test_json_schema_refuses_bad_shapes(name: str) -> None:
     schema = world_json_schema()
     data = yaml.safe_load((ROOT / "tests" / "worlds" / f"{name}.yaml").read_text(encoding="utf-8"))
     assert schema_errors(data, schema, schema) != []
+
+
+@pytest.mark.parametrize(
+    ("kind", "folder"), [("env-world", "gym"), ("plane-world", "continuous")]
+)
+def test_json_schemas_of_env_and_plane_worlds_accept_the_shipped_ones(
+    kind: str, folder: str
+) -> None:
+    schema = world_json_schema(kind)
+    json.dumps(schema)
+    assert schema["type"] == "object" and schema["additionalProperties"] is False
+    for name, prop in schema["properties"].items():
+        assert prop.get("description"), f"{kind}: {name} has no description"
+    files = sorted((ROOT / "specs" / folder).glob("*.yaml"))
+    assert len(files) == 3
+    for path in files:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        assert schema_errors(data, schema, schema) == [], path
+    bad = {**yaml.safe_load(files[0].read_text(encoding="utf-8")), "horizon": "soon"}
+    assert schema_errors(bad, schema, schema) != []
