@@ -51,13 +51,13 @@ from mitlc.learn.nets import (
     torch_seed,
 )
 from mitlc.learn.vec import Step, Tables, VecProduct
-from mitlc.worlds.model import FloatArray, IntArray
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
 class DQNPolicy(Policy):
     """Greedy in a frozen copy of the Q network, over the valid actions."""
 
-    def __init__(self, tables: Tables, encoder: Encoder, net: torch.nn.Module) -> None:
+    def __init__(self, tables: Tables | None, encoder: Encoder, net: torch.nn.Module) -> None:
         self.tables, self.encoder, self.net = tables, encoder, net
 
     def values(self, observation: IntArray, automaton: IntArray, mask: IntArray) -> torch.Tensor:
@@ -68,14 +68,14 @@ class DQNPolicy(Policy):
 
     def act(self, env: VecProduct) -> IntArray:
         """The greedy valid action of each episode."""
-        automaton = self.encoder.automaton_of(env.state)
-        return greedy(self.values(env.observation, automaton, env.mask), env.valid_actions())
+        return greedy(self.values(env.observation, env.automaton, env.mask), env.valid_actions())
 
     def choices(self) -> IntArray:
         """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
         (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success`. The policy
         is memoryless over (mask, product state) on an MDP, where the observation is the cell."""
         t = self.tables
+        assert t is not None, "exact evaluation needs the finite product"
         states = np.arange(t.num_states)
         cells = np.maximum(t.world_state, 0)
         automaton = self.encoder.automaton_of(states)
@@ -93,12 +93,18 @@ class DQNLearner(Learner):
 
     def __init__(
         self,
-        tables: Tables,
+        tables: Tables | None,
         config: TrainConfig,
         rng: np.random.Generator,
         phi: FloatArray | None = None,
         counterfactuals: Counterfactuals | None = None,
+        *,
+        encoder: Encoder | None = None,
+        num_actions: int | None = None,
     ) -> None:
+        """``tables``: the finite product it learns on; ``None`` for any wrapped env
+        (:class:`mitlc.learn.envvec.TaskVector`), with the ``encoder`` of its observations
+        (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
         self.counterfactuals = counterfactuals
@@ -107,29 +113,35 @@ class DQNLearner(Learner):
         self.settings: DQNConfig = config.dqn
         s = self.settings
         self.num_envs = s.num_envs
-        self.encoder = Encoder(tables)
+        if tables is not None:
+            encoder = encoder or Encoder(tables)
+            num_actions = num_actions or tables.num_actions
+        if encoder is None or num_actions is None:
+            raise ValueError("a learner of any env needs the encoder and number of its actions")
+        self.encoder, self.num_actions = encoder, num_actions
         self.net: torch.nn.Sequential = build(
-            torch_seed(rng), lambda: mlp(self.encoder.size, s.hidden, s.layers, tables.num_actions)
+            torch_seed(rng), lambda: mlp(self.encoder.size, s.hidden, s.layers, self.num_actions)
         )
         if s.initial_value:
             optimistic(self.net[-1], s.initial_value * s.reward_scale)
         self.target = copy.deepcopy(self.net)
         self.target.requires_grad_(False)
         self.optimizer = torch.optim.Adam(self.net.parameters(), lr=s.lr)
+        observation = self.encoder.observation_field
         self.replay = Ring(
             s.replay_size,
             {
-                "observation": ((), np.int64),
+                "observation": observation,
                 "automaton": ((), np.int64),
                 "mask": ((), np.int64),
                 "action": ((), np.int64),
                 "reward": ((), np.float32),
                 "gamma": ((), np.float32),
                 "terminated": ((), np.bool_),
-                "next_observation": ((), np.int64),
+                "next_observation": observation,
                 "next_automaton": ((), np.int64),
                 "next_mask": ((), np.int64),
-                "next_valid": ((tables.num_actions,), np.bool_),
+                "next_valid": ((self.num_actions,), np.bool_),
             },
         )
         self.vector_steps = self.gradient_steps = 0
@@ -157,7 +169,7 @@ class DQNLearner(Learner):
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
         state, observation, mask = env.state, env.observation, env.mask
-        automaton = self.encoder.automaton_of(state)
+        automaton = env.automaton
         actions = self._act(env, automaton)
         step = env.step(actions)
         reward, gammas = learning_signal(step, state, self.config, self.phi)
@@ -170,13 +182,15 @@ class DQNLearner(Learner):
             "gamma": gammas,
             "terminated": step.terminated,
             "next_observation": step.next_observation,
-            "next_automaton": self.encoder.automaton_of(step.next_state),
+            "next_automaton": self._next_automaton(step),
             "next_mask": step.next_mask,
-            "next_valid": self.tables.valid[step.next_state],
+            "next_valid": self._next_valid(step),
         }
         if self.counterfactuals is not None:
-            told = (actions < self.tables.num_world_actions) & (
-                self.tables.world_state[step.next_state] >= 0
+            tables = self.tables
+            assert tables is not None, "counterfactuals come from a finite product"
+            told = (actions < tables.num_world_actions) & (
+                tables.world_state[step.next_state] >= 0
             )
             entries = {name: values[~told] for name, values in entries.items()}
             self.replay.add(self._entries(self.counterfactuals.of(state, actions, step.next_state)))
@@ -186,13 +200,29 @@ class DQNLearner(Learner):
             self._learn()
         return step
 
+    def _next_automaton(self, step: Step) -> IntArray:
+        """The automaton state each episode reached: the simulator's, or the product's."""
+        if step.next_automaton is not None:
+            return step.next_automaton
+        return self.encoder.automaton_of(step.next_state)
+
+    def _next_valid(self, step: Step) -> BoolArray:
+        """The actions valid where each episode arrived."""
+        if step.next_valid is not None:
+            return step.next_valid
+        assert self.tables is not None
+        valid: BoolArray = self.tables.valid[step.next_state]
+        return valid
+
     def _entries(self, batch: Batch) -> dict[str, Any]:
         """Replay entries of transitions between product states (an MDP: the observation is
         the cell)."""
         reward, gammas = transition_signal(
             batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
         )
-        world = self.tables.world_state
+        tables = self.tables
+        assert tables is not None, "counterfactuals come from a finite product"
+        world = tables.world_state
         return {
             "observation": np.maximum(world[batch.state], 0),
             "automaton": self.encoder.automaton_of(batch.state),
@@ -204,7 +234,7 @@ class DQNLearner(Learner):
             "next_observation": np.maximum(world[batch.next_state], 0),
             "next_automaton": self.encoder.automaton_of(batch.next_state),
             "next_mask": batch.next_mask,
-            "next_valid": self.tables.valid[batch.next_state],
+            "next_valid": tables.valid[batch.next_state],
         }
 
     def _learn(self) -> None:
@@ -240,7 +270,8 @@ class DQNLearner(Learner):
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` (``ValueError`` or ``RuntimeError`` if it does not fit)."""
-        check_indices(saved["replay"]["data"], self.tables, "replay.")
+        if self.tables is not None:
+            check_indices(saved["replay"]["data"], self.tables, "replay.")
         load_deep_state(self, saved)
 
     def policy(self) -> DQNPolicy:

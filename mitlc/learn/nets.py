@@ -57,18 +57,68 @@ class Encoder:
         """``num_automaton_states``: the automaton block's width (default: the states the
         product has; the gymnasium wrapper's flat observation has one for every automaton
         state)."""
-        self.automaton = np.maximum(tables.automaton_state, 0)
-        self.num_sets = tables.num_sets
+        self.automaton: IntArray | None = np.maximum(tables.automaton_state, 0)
+        width = num_automaton_states or tables.num_automaton_states
+        self._layout(
+            tables.num_observations, None, width, tables.num_sets, tables.num_actions,
+            previous_action,
+        )  # fmt: skip
+
+    @classmethod
+    def of_spaces(
+        cls,
+        observation: Any,
+        num_automaton_states: int,
+        num_sets: int,
+        num_actions: int,
+        previous_action: bool = False,
+    ) -> Encoder:
+        """An encoder of a wrapped env's observations: its own part a ``Discrete`` space
+        (one-hot) or a bounded ``Box`` (its values scaled to [0, 1] by the bounds)."""
+        encoder = cls.__new__(cls)
+        encoder.automaton = None
+        if hasattr(observation, "n"):
+            encoder._layout(int(observation.n), None, num_automaton_states, num_sets,
+                            num_actions, previous_action)  # fmt: skip
+            return encoder
+        low = np.asarray(observation.low, dtype=np.float32).ravel()
+        high = np.asarray(observation.high, dtype=np.float32).ravel()
+        if not (np.isfinite(low).all() and np.isfinite(high).all()):
+            raise ValueError(f"the deep learners read a bounded Box or Discrete, not {observation}")
+        encoder._layout(len(low), (low, np.maximum(high - low, 1e-9)), num_automaton_states,
+                        num_sets, num_actions, previous_action)  # fmt: skip
+        return encoder
+
+    def _layout(
+        self,
+        width: int,
+        box: tuple[Any, Any] | None,
+        num_automaton_states: int,
+        num_sets: int,
+        num_actions: int,
+        previous_action: bool,
+    ) -> None:
+        self.box = box
+        self.num_sets = num_sets
         self.previous_action = previous_action
         self.obs_offset = 0
-        self.aut_offset = tables.num_observations
-        width = num_automaton_states or tables.num_automaton_states
-        self.mask_offset = self.aut_offset + width
-        self.action_offset = self.mask_offset + tables.num_sets
-        self.size = self.action_offset + (tables.num_actions + 1 if previous_action else 0)
+        self.aut_offset = width
+        self.mask_offset = self.aut_offset + num_automaton_states
+        self.action_offset = self.mask_offset + num_sets
+        self.size = self.action_offset + (num_actions + 1 if previous_action else 0)
+
+    @property
+    def observation_field(self) -> tuple[tuple[int, ...], Any]:
+        """The shape and dtype of one observation in a replay memory: an id, or the Box's
+        values."""
+        if self.box is None:
+            return (), np.int64
+        return (self.aut_offset,), np.float32
 
     def automaton_of(self, states: IntArray) -> IntArray:
-        """The automaton state of product states ``states`` (what the agent may know of them)."""
+        """The automaton state of product states ``states`` (what the agent may know of them;
+        an encoder of a product's tables only)."""
+        assert self.automaton is not None, "an encoder of spaces knows no product states"
         automaton: IntArray = self.automaton[states]
         return automaton
 
@@ -81,10 +131,15 @@ class Encoder:
     ) -> torch.Tensor:
         """The features of each entry (any shape ``S``): a float tensor of shape ``S + (size,)``;
         ``previous`` is the previous action, -1 for none."""
-        shape = np.shape(observation)
+        shape = np.shape(automaton)
         rows = np.arange(int(np.prod(shape)))
         x = np.zeros((len(rows), self.size), dtype=np.float32)
-        x[rows, self.obs_offset + np.ravel(observation)] = 1.0
+        if self.box is None:
+            x[rows, self.obs_offset + np.ravel(observation)] = 1.0
+        else:
+            low, span = self.box
+            values = np.reshape(observation, (len(rows), self.aut_offset))
+            x[:, : self.aut_offset] = (values - low) / span
         x[rows, self.aut_offset + np.ravel(automaton)] = 1.0
         if self.num_sets:
             bits = (np.ravel(mask)[:, None] >> np.arange(self.num_sets)) & 1

@@ -178,6 +178,11 @@ class Step:
     """The return so far of each episode, this step included (complete for ended ones)."""
     episode_steps: IntArray
     """World actions taken so far in each episode, this step included."""
+    next_automaton: IntArray | None = None
+    """The automaton state reached (a simulator without product states gives it; for the
+    product's it is read from ``next_state``)."""
+    next_valid: BoolArray | None = None
+    """The actions valid in the state reached (likewise)."""
 
     @property
     def done(self) -> BoolArray:
@@ -241,6 +246,12 @@ class VecProduct:
         self.rng.bit_generator.state = saved["rng"]
 
     # -- stepping ------------------------------------------------------------------------------
+
+    @property
+    def automaton(self) -> IntArray:
+        """The automaton state of each episode (0 at the absorbing product states)."""
+        automaton: IntArray = np.maximum(self.tables.automaton_state[self.state], 0)
+        return automaton
 
     def valid_actions(self) -> BoolArray:
         """``valid[i, a]``: action ``a`` is available to episode ``i``."""

@@ -1,0 +1,111 @@
+"""DQN on any wrapped environment (``TaskVector``): a Discrete-observation toy-text env and a
+Box-observation continuous world, beside the simulator's interface it shares."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from mitlc.gym import TaskWrapper
+from mitlc.learn.config import resolve
+from mitlc.learn.dqn import DQNLearner
+from mitlc.learn.envvec import TaskVector
+from mitlc.learn.nets import Encoder
+from mitlc.worlds.load import load_plane_world
+from mitlc.worlds.plane_env import make_plane_env
+
+LAKE = {"goal": {"obs": [15]}, "hole": {"obs": [5, 7, 11, 12]}}
+CORRIDOR = """
+name: corridor
+plane:
+  room: {width: 4.0, height: 1.0}
+  start: [0.5, 0.5]
+  actions: {headings: [left, right], stay: true, step: 1.0}
+labels:
+  goal: {box: {low: [3.0, 0.0], high: [4.0, 1.0]}}
+spec: {formula: "F[0,6] goal"}
+reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
+horizon: 10
+discount: 0.9
+"""
+
+
+def learner_for(vector: TaskVector, episodes_hint: int) -> DQNLearner:
+    overrides = {"algo": "dqn", "dqn.num_envs": vector.num_envs, "dqn.warmup_steps": 64,
+                 "dqn.initial_value": 1.0, "dqn.epsilon_decay": 0.5,
+                 "episodes": episodes_hint}  # fmt: skip
+    config = resolve({}, overrides, discount=0.9, pomdp=False)
+    space = vector.observation_space
+    encoder = Encoder.of_spaces(
+        space[vector.env_key], int(space["automaton"].n),
+        vector.envs[0].monitor.num_sets, vector.num_actions,
+    )  # fmt: skip
+    return DQNLearner(None, config, np.random.default_rng(0), encoder=encoder,
+                      num_actions=vector.num_actions)  # fmt: skip
+
+
+def train(learner: DQNLearner, vector: TaskVector, episodes: int) -> None:
+    done = 0
+    while done < episodes:
+        done += int(learner.train_step(vector, done / episodes).done.sum())  # type: ignore[arg-type]
+
+
+def greedy_success(learner: DQNLearner, vector: TaskVector, episodes: int) -> float:
+    policy, wins, ended = learner.policy(), 0, 0
+    while ended < episodes:
+        step = vector.step(policy.act(vector))  # type: ignore[arg-type]
+        wins += int((step.success & step.done).sum())
+        ended += int(step.done.sum())
+    return wins / ended
+
+
+def test_the_vector_steps_the_wrappers_with_same_step_restarts() -> None:
+    envs = [TaskWrapper(gym.make("FrozenLake-v1", is_slippery=False), "F[0,8] goal", LAKE,
+                        horizon=10) for _ in range(3)]  # fmt: skip
+    vector = TaskVector(envs, seed=0)
+    assert vector.observation.tolist() == [0, 0, 0] and vector.automaton.tolist() == [0, 0, 0]
+    right, down = 2, 1
+    path = [down, down, right, right, down, right]  # 0 -> 4 -> 8 -> 9 -> 10 -> 14 -> 15
+    for k, action in enumerate(path):
+        step = vector.step(np.full(3, action))
+        if k < len(path) - 1:
+            assert not step.done.any()
+    assert step.done.all() and step.success.all() and (step.next_observation == 15).all()
+    # FrozenLake ends at the goal; the task reads the goal's letter once more (a stutter step)
+    assert (vector.observation == 0).all() and (step.episode_steps == len(path) + 1).all()
+    assert step.next_valid is not None and step.next_automaton is not None
+
+
+def test_dqn_learns_a_discrete_toy_text_env() -> None:
+    """A 3x3 lake (holes at 1 and 5, the goal at 8): reach it within 6 steps, avoiding holes."""
+    desc = ["SHF", "FFH", "FFG"]
+    labels = {"goal": {"obs": [8]}, "hole": {"obs": [1, 5]}}
+    envs = [TaskWrapper(gym.make("FrozenLake-v1", desc=desc, is_slippery=False),
+                        "!hole U[0,6] goal", labels, horizon=8) for _ in range(4)]  # fmt: skip
+    vector = TaskVector(envs, seed=0)
+    assert vector.observation_space["env"].n == 9
+    learner = learner_for(vector, 800)
+    train(learner, vector, 800)
+    assert greedy_success(learner, vector, 40) >= 0.95
+
+
+def test_dqn_learns_a_box_observation_continuous_world(tmp_path: Path) -> None:
+    path = tmp_path / "corridor.yaml"
+    path.write_text(CORRIDOR)
+    assert load_plane_world(path).width == 4.0
+    vector = TaskVector([make_plane_env(path) for _ in range(4)], seed=0)
+    assert vector.observation.shape == (4, 2)
+    encoder = learner_for(vector, 1).encoder
+    features = encoder(vector.observation, vector.automaton, vector.mask)
+    assert float(features[:, :2].min()) >= 0.0 and float(features[:, :2].max()) <= 1.0
+    learner = learner_for(vector, 400)
+    train(learner, vector, 400)
+    assert greedy_success(learner, vector, 40) >= 0.95
+
+
+def test_an_unbounded_box_is_refused() -> None:
+    with pytest.raises(ValueError, match="bounded Box"):
+        Encoder.of_spaces(gym.spaces.Box(-np.inf, np.inf, (2,)), 3, 0, 2)
