@@ -41,6 +41,8 @@ def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, s
 
     raw = read_any_world_file(world_file)
     pomdp = getattr(raw, "observation", None) is not None
+    if hasattr(raw, "plane") and "algo" not in overrides and "algo" not in raw.training:
+        overrides = {**overrides, "algo": "dqn"}  # a continuous world: the deep learner
     config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
     return config, raw.name or world_file.stem
 
@@ -249,10 +251,13 @@ def _print_evaluation(
     if report.exact is not None:
         rows.append(("learned, exact", f"{report.exact:.6f}"))
     kind = "fully observable upper bound" if report.pomdp else "optimum"
-    rows.append((kind, f"{report.optimum:.6f}"))
+    if report.optimum is None:
+        rows.append(("optimum", "none: a continuous world is not finite (no exact optimum)"))
+    else:
+        rows.append((kind, f"{report.optimum:.6f}"))
     if report.lower is not None:
         rows.append(("observation-based lower bound", f"{report.lower:.6f}"))
-    if report.optimum > 0:
+    if report.optimum is not None and report.optimum > 0:
         shown = report.exact if report.exact is not None else report.success_rate
         rows.append(("ratio", f"{shown / report.optimum:.4f}"))
     if report.lower is not None and report.lower > 0:

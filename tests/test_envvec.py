@@ -109,3 +109,39 @@ def test_dqn_learns_a_box_observation_continuous_world(tmp_path: Path) -> None:
 def test_an_unbounded_box_is_refused() -> None:
     with pytest.raises(ValueError, match="bounded Box"):
         Encoder.of_spaces(gym.spaces.Box(-np.inf, np.inf, (2,)), 3, 0, 2)
+
+
+# --- a continuous world from the command line ------------------------------------------------
+
+
+def test_a_continuous_world_trains_evaluates_plots_and_resumes_exactly(tmp_path: Path) -> None:
+    """``mitlc train`` on a ``plane:`` world (DQN on its wrapped envs), interrupted and resumed,
+    ends exactly where an uninterrupted run does (the same metrics, the same evaluation);
+    ``eval`` says there is no exact optimum; ``plot`` draws the room."""
+    from mitlc.learn.config import resolve as resolve_config
+    from mitlc.learn.evaluate import evaluate
+    from mitlc.learn.plot import plot_run
+    from mitlc.learn.run import train as train_run
+
+    path = tmp_path / "corridor.yaml"
+    path.write_text(CORRIDOR)
+    overrides = {"algo": "dqn", "episodes": 300, "dqn.num_envs": 4, "dqn.warmup_steps": 64,
+                 "dqn.initial_value": 1.0, "log_every": 50, "checkpoint_every": 100}  # fmt: skip
+    settings = resolve_config({}, overrides, discount=0.9, pomdp=False)
+    straight = train_run(path, settings, tmp_path / "straight")
+    calls = iter(range(100_000))
+    stopped = train_run(path, settings, tmp_path / "split", should_stop=lambda: next(calls) == 30)
+    assert stopped.stopped and 0 < stopped.episodes < 300
+    resumed = train_run(path, settings, tmp_path / "split", resume=True)
+    assert resumed.episodes == straight.episodes and resumed.steps == straight.steps
+    metrics = [(tmp_path / run / "metrics.jsonl").read_text().splitlines()
+               for run in ("straight", "split")]  # fmt: skip
+    strip = [[line.split('"seconds"')[0] for line in lines] for lines in metrics]
+    assert strip[0] == strip[1]
+    a, b = (evaluate(tmp_path / run, episodes=100) for run in ("straight", "split"))
+    assert a.successes == b.successes and a.optimum is None
+    assert a.summary()["optimum_kind"].startswith("none")
+    written = plot_run(tmp_path / "straight", trajectories=2)
+    assert [p.name for p in written] == ["learning_curve.png", "trajectories.png",
+                                         "automaton.png"]  # fmt: skip
+    assert all(p.stat().st_size > 0 for p in written)

@@ -244,6 +244,28 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             self._masks[q] = mask
         return mask.copy()
 
+    def state_dict(self) -> dict[str, Any]:
+        """The run's state for a checkpoint: the task monitor's, the letter to read next, the
+        env's last observation and, where the env has a ``state_dict``, the env's own."""
+        inner = self.env.unwrapped
+        own = inner.state_dict() if hasattr(inner, "state_dict") else {}
+        return {
+            "monitor": list(self._state),
+            "letter": self._letter,
+            "done": self._done,
+            "env_obs": self._env_obs,
+            "env": own,
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` (the env's info is not kept: it starts empty)."""
+        self._state = MonitorState(*(int(v) for v in saved["monitor"]))
+        self._letter, self._done = int(saved["letter"]), bool(saved["done"])
+        self._env_obs, self._env_info = saved["env_obs"], {}
+        inner = self.env.unwrapped
+        if hasattr(inner, "load_state_dict"):
+            inner.load_state_dict(saved["env"])
+
     # -- gymnasium API -------------------------------------------------------------------------
 
     def reset(

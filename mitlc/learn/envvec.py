@@ -47,6 +47,27 @@ class TaskVector:
         """No product states: -1 for every episode."""
         return np.full(self.num_envs, -1, dtype=np.int64)
 
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to go on exactly: each wrapper's run (and its env's state, where
+        the env has one: a continuous world's does), the episodes' observations and tallies."""
+        return {
+            "envs": [env.state_dict() for env in self.envs],
+            "observation": np.asarray(self.observation).copy(),
+            "automaton": self.automaton.copy(),
+            "mask": self.mask.copy(),
+            "returns": self.returns.copy(),
+            "steps": self.steps.copy(),
+        }
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        if len(saved["envs"]) != self.num_envs:
+            raise ValueError(f"envs: {len(saved['envs'])} saved, {self.num_envs} here")
+        for env, state in zip(self.envs, saved["envs"], strict=True):
+            env.load_state_dict(state)
+        for name in ("observation", "automaton", "mask", "returns", "steps"):
+            setattr(self, name, np.array(saved[name]))
+
     def valid_actions(self) -> BoolArray:
         """``valid[i, a]``: action ``a`` is available to episode ``i``."""
         return np.stack([env.action_masks() for env in self.envs])
@@ -59,6 +80,8 @@ class TaskVector:
         success = np.zeros(n, dtype=np.bool_)
         reached: list[Any] = []
         restarted: list[Any] = []
+        self.infos: list[dict[str, Any]] = []
+        """The infos of the last step (before ended episodes restarted)."""
         before = self.mask
         for i, (env, action) in enumerate(zip(self.envs, actions.tolist(), strict=True)):
             obs, r, term, trunc, info = env.step(action)
@@ -66,6 +89,7 @@ class TaskVector:
             marks = sum(1 << k for k in info["marks"])
             accepting[i] = bool(marks & ~int(before[i]))
             success[i] = info["success"]
+            self.infos.append(info)
             self.steps[i] = info["step"]
             reached.append(obs)
             restarted.append(env.reset()[0] if term or trunc else obs)

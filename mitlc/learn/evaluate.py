@@ -64,8 +64,9 @@ class Evaluation:
     mean_return: float
     exact: float | None
     """The policy's exact success probability (memoryless policies on MDPs)."""
-    optimum: float
-    """``pmax_horizon`` of the product (fully observable: an upper bound for a POMDP)."""
+    optimum: float | None
+    """``pmax_horizon`` of the product (fully observable: an upper bound for a POMDP);
+    ``None`` for a continuous world, which has none."""
     pomdp: bool
     bounds: dict[str, Any] | None
     seconds: float
@@ -83,6 +84,11 @@ class Evaluation:
         """The 95% Wilson interval of the success rate."""
         return wilson(self.successes, self.episodes)
 
+    def _optimum_kind(self) -> str:
+        if self.optimum is None:
+            return "none: a continuous world has no exact optimum"
+        return "fully observable upper bound" if self.pomdp else "exact"
+
     def summary(self) -> dict[str, Any]:
         """JSON-ready data."""
         low, high = self.interval
@@ -96,11 +102,11 @@ class Evaluation:
             "mean_return": self.mean_return,
             "exact": self.exact,
             "optimum": self.optimum,
-            "optimum_kind": "fully observable upper bound" if self.pomdp else "exact",
-            "ratio": self.success_rate / self.optimum if self.optimum > 0 else None,
+            "optimum_kind": self._optimum_kind(),
+            "ratio": self.success_rate / self.optimum if self.optimum else None,
             "seconds": round(self.seconds, 3),
         }
-        if self.exact is not None and self.optimum > 0:
+        if self.exact is not None and self.optimum:
             data["exact_ratio"] = self.exact / self.optimum
         if self.bounds is not None:
             data["bounds"] = self.bounds
@@ -108,6 +114,29 @@ class Evaluation:
             data["lower_bound"] = self.lower
             data["lower_ratio"] = self.success_rate / self.lower if self.lower > 0 else None
         return data
+
+
+def _plane_evaluation(directory: Path, episodes: int | None, seed: int) -> Evaluation:
+    """A continuous world's run: greedy episodes in its wrapped envs, no optimum."""
+    from mitlc.learn.plane_run import monte_carlo_plane
+    from mitlc.learn.run import load_plane_learner
+
+    start = time.perf_counter()
+    setting, learner = load_plane_learner(directory)
+    count = episodes if episodes is not None else setting.config.eval_episodes
+    successes, mean_return = monte_carlo_plane(setting, learner.policy(), count, seed)
+    return Evaluation(
+        world=setting.world.name,
+        algo=setting.config.algo,
+        episodes=count,
+        successes=successes,
+        mean_return=mean_return,
+        exact=None,
+        optimum=None,
+        pomdp=setting.world.is_pomdp,
+        bounds=None,
+        seconds=time.perf_counter() - start,
+    )
 
 
 def monte_carlo(setting: Setting, policy: Policy, episodes: int, seed: int) -> tuple[int, float]:
@@ -140,6 +169,10 @@ def evaluate(
     worlds; needs stormpy). The set-up and the exact figures stop at ``deadline`` (by default
     :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds); the POMDP bounds are left out when the
     time runs out during them."""
+    from mitlc.learn.run import is_plane_run
+
+    if is_plane_run(Path(directory)):
+        return _plane_evaluation(Path(directory), episodes, seed)
     start = time.perf_counter()
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "evaluation")
     setting, learner = load_learner(Path(directory), deadline=clock)

@@ -31,7 +31,14 @@ from matplotlib.ticker import FuncFormatter
 
 from mitlc.automata import compile_formula
 from mitlc.automata.dot import render, to_dot, write_atomically
-from mitlc.learn.run import METRICS, RunError, Setting, load_learner, read_config
+from mitlc.learn.run import (
+    METRICS,
+    RunError,
+    Setting,
+    is_plane_run,
+    load_learner,
+    read_config,
+)
 from mitlc.learn.rundir import METRIC_FIELDS, read_metrics_rows
 from mitlc.learn.trajectories import Trajectory, rollouts
 from mitlc.syntax import parse
@@ -380,6 +387,10 @@ def plot_run(
     out = directory if out is None else Path(out)
     data, config = read_config(directory)
     metrics = read_metrics(directory)
+    if is_plane_run(directory):  # a continuous world: drawn in its room
+        from mitlc.learn.plot_plane import plot_plane_run
+
+        return plot_plane_run(directory, out, data, metrics, trajectories, seed)
     setting, learner = load_learner(directory)
     name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
     curve = out / LEARNING_CURVE
@@ -400,3 +411,4 @@ def plot_run(
     timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
     render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
     return [*written, automaton]
+

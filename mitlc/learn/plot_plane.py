@@ -11,6 +11,8 @@ Drawn on :class:`matplotlib.figure.Figure` directly (no pyplot, no display), lik
 
 from __future__ import annotations
 
+import textwrap
+from pathlib import Path
 from typing import Any
 
 from matplotlib.axes import Axes
@@ -140,3 +142,41 @@ def plane_figure(
 
 
 __all__ = ["plane_figure"]
+
+
+def plot_plane_run(
+    directory: Path,
+    out: Path,
+    data: dict[str, Any],
+    metrics: Any,
+    trajectories: int,
+    seed: int,
+) -> list[Path]:
+    """A continuous world's run: the learning curve, greedy trajectories in the room
+    (:func:`mitlc.learn.plot_plane.plane_figure`) and the timed automaton."""
+    from mitlc.automata import compile_formula
+    from mitlc.automata.dot import render, to_dot, write_atomically
+    from mitlc.learn.plane_run import rollouts_plane
+    from mitlc.learn.plot import AUTOMATON, LEARNING_CURVE, TRAJECTORIES, learning_curve, png_bytes
+    from mitlc.learn.run import load_plane_learner
+    from mitlc.syntax import parse
+
+    setting, learner = load_plane_learner(directory)
+    name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
+    curve = out / LEARNING_CURVE
+    algo = setting.config.algo
+    write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {algo}")))
+    drawn = rollouts_plane(setting, learner.policy(), trajectories, seed)
+    wins = sum(success for _, success in drawn)
+    formula = textwrap.fill(setting.automaton.formula, 110)
+    title = (
+        f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n"
+        f"{formula}"
+    )
+    room = out / TRAJECTORIES
+    figure = plane_figure(setting.world, [path for path, _ in drawn], title)
+    write_atomically(room, png_bytes(figure))
+    automaton = out / AUTOMATON
+    timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
+    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
+    return [curve, room, automaton]

@@ -41,6 +41,7 @@ from mitlc.errors import MitlcError
 from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner, potential
 from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
+from mitlc.learn.plane_run import PlaneSetting, make_plane_learner, make_vector, prepare_plane
 from mitlc.learn.rundir import RunError as RunError
 from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
@@ -49,6 +50,7 @@ from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
 from mitlc.worlds import World, load_world
+from mitlc.worlds.load import is_plane_world
 
 CONFIG, METRICS, CHECKPOINT, SUMMARY = (
     "config.json",
@@ -197,6 +199,23 @@ def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Settin
         raise RunError(f"{directory / CONFIG}: the run's world or task: {one_line(err)}") from None
 
 
+def load_plane_learner(directory: Path) -> tuple[PlaneSetting, Learner]:
+    """The run of a continuous world in ``directory``: its setting, and its learner as last
+    checkpointed."""
+    data, config = read_config(directory)
+    setting = prepare_plane(Path(data["world"]), config, data["spec"])
+    _, learner_rng = _rngs(config.seed)
+    learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
+    _restore(directory, learner, env, _Tally())
+    return setting, learner
+
+
+def is_plane_run(directory: Path) -> bool:
+    """Whether the run in ``directory`` learns a continuous world."""
+    data, _ = read_config(directory)
+    return Path(data["world"]).is_file() and is_plane_world(data["world"])
+
+
 def load_learner(
     directory: Path, *, deadline: Deadline | None = None
 ) -> tuple[Setting, Learner]:
@@ -214,13 +233,18 @@ def load_learner(
 
 def _build(
     where: Path | str,
-    setting: Setting,
+    setting: Setting | PlaneSetting,
     learner_rng: np.random.Generator,
     env_rng: np.random.Generator,
-) -> tuple[Learner, VecProduct]:
-    """A fresh learner and simulator for the run's settings (sizes the machine cannot hold
-    are a :class:`RunError` naming ``where`` the settings come from)."""
+) -> tuple[Learner, Any]:
+    """A fresh learner and simulator for the run's settings: the product's simulator, or for
+    a continuous world a vector of its wrapped envs (sizes the machine cannot hold are a
+    :class:`RunError` naming ``where`` the settings come from)."""
     try:
+        if isinstance(setting, PlaneSetting):
+            learner = make_plane_learner(setting, learner_rng)
+            seed = int(env_rng.integers(2**31))
+            return learner, make_vector(setting, learner.num_envs, seed)
         learner = make_learner(setting, learner_rng)
         return learner, VecProduct(setting.tables, learner.num_envs, env_rng)
     except (ValueError, TypeError, MemoryError, RuntimeError, OverflowError) as err:
@@ -253,7 +277,7 @@ class _Tally:
         vars(self).update(saved)
 
 
-def _restore(directory: Path, learner: Learner, env: VecProduct, tally: _Tally) -> None:
+def _restore(directory: Path, learner: Learner, env: Any, tally: _Tally) -> None:
     """Load the run's latest checkpoint into fresh ``learner``, ``env`` and ``tally``."""
     parts: dict[str, Stateful] = {"learner": learner, "env": env, "tally": tally}
     loaded = restore(directory, parts, rows=ROWS, unchecked=UNCHECKED)
@@ -261,7 +285,7 @@ def _restore(directory: Path, learner: Learner, env: VecProduct, tally: _Tally) 
         raise RunError(f"{loaded.files['json']}: tally.steps is not the checkpoint's steps")
 
 
-def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> None:
+def _start(directory: Path, setting: Setting | PlaneSetting, spec: str, resume: bool) -> None:
     """Check the run directory (locked by the caller) for a fresh run or a resumed one."""
     if not resume:
         if (directory / CONFIG).exists() or checkpoint.exists(directory):
@@ -277,7 +301,7 @@ def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> None:
         raise RunError(f"{directory}: --resume with another world or task than the run's")
 
 
-def _save_config(directory: Path, setting: Setting) -> None:
+def _save_config(directory: Path, setting: Setting | PlaneSetting) -> None:
     _write_json(
         directory / CONFIG,
         {
@@ -322,7 +346,11 @@ def train(
             should_stop=should_stop, deadline=deadline,
         )  # fmt: skip
     directory = Path(out)
-    setting = prepare(Path(world_path), config, spec, deadline=deadline)
+    setting: Setting | PlaneSetting
+    if is_plane_world(world_path):  # a continuous world: mitlc.learn.plane_run
+        setting = prepare_plane(Path(world_path), config, spec, deadline=deadline)
+    else:
+        setting = prepare(Path(world_path), config, spec, deadline=deadline)
     if resume:
         read_config(directory)  # a run directory at all?
     else:
@@ -334,7 +362,7 @@ def train(
 
 def _train(
     directory: Path,
-    setting: Setting,
+    setting: Setting | PlaneSetting,
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,

@@ -83,6 +83,16 @@ class PlaneEnv(gym.Env[Any, Any]):
         reward = self._move if self._moves[a] else 0.0
         return self._observe(), reward, False, False, self._info()
 
+    def state_dict(self) -> dict[str, Any]:
+        """The robot's position and the env's random state (for checkpoints)."""
+        return {"position": [float(v) for v in self._p], "rng": self.np_random.bit_generator.state}
+
+    def load_state_dict(self, saved: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        x, y = (float(v) for v in saved["position"])
+        self._p = (x, y)
+        self.np_random.bit_generator.state = saved["rng"]
+
     def render(self) -> str | None:
         """With ``render_mode="ansi"``: the position and the labels holding there."""
         if self.render_mode != "ansi":
@@ -137,13 +147,18 @@ class PositionLabels:
 
 
 def plane_task(
-    world: PlaneWorld, *, flatten: bool = False, render_mode: str | None = None
+    world: PlaneWorld,
+    *,
+    flatten: bool = False,
+    render_mode: str | None = None,
+    automaton: Any = None,
 ) -> TaskWrapper:
     """``world`` with its task: ``TaskWrapper(PlaneEnv(world), world.spec, its labels,
-    rewards=world.rewards, horizon=world.horizon, reward_mode="add")``."""
+    rewards=world.rewards, horizon=world.horizon, reward_mode="add")``; ``automaton``, when
+    given, is the task's (compiled once for many envs)."""
     return TaskWrapper(
         PlaneEnv(world, render_mode=render_mode),
-        translate(parse(world.spec, world.spec_source)),
+        automaton if automaton is not None else translate(parse(world.spec, world.spec_source)),
         PositionLabels.of(world),
         rewards=world.rewards,
         horizon=world.horizon,
