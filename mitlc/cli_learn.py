@@ -41,8 +41,10 @@ def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, s
 
     raw = read_any_world_file(world_file)
     pomdp = getattr(raw, "observation", None) is not None
-    if hasattr(raw, "plane") and "algo" not in overrides and "algo" not in raw.training:
-        overrides = {**overrides, "algo": "dqn"}  # a continuous world: the deep learner
+    if hasattr(raw, "plane"):  # a continuous world: a deep learner (recurrent with a sensor)
+        pomdp = raw.plane.sensor is not None
+        if not pomdp and "algo" not in overrides and "algo" not in raw.training:
+            overrides = {**overrides, "algo": "dqn"}
     config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
     return config, raw.name or world_file.stem
 

@@ -91,12 +91,22 @@ class Streams:
 
     NAMES = ("observation", "automaton", "mask", "previous", "action", "terminated")
 
-    def __init__(self, num_envs: int, longest: int, actions: int, state_size: int) -> None:
+    def __init__(
+        self,
+        num_envs: int,
+        longest: int,
+        actions: int,
+        state_size: int,
+        observation: tuple[tuple[int, ...], Any] = ((), np.int64),
+    ) -> None:
+        """``observation``: the shape and dtype of one observation (an id, or a Box's values:
+        :attr:`mitlc.learn.nets.Encoder.observation_field`)."""
         self.length = np.zeros(num_envs, dtype=np.int64)
         self.rows = np.arange(num_envs)
         inputs, steps = (num_envs, longest + 1), (num_envs, longest)
+        shape, dtype = observation
         self.data: dict[str, np.ndarray[Any, Any]] = {
-            "observation": np.zeros(inputs, dtype=np.int64),
+            "observation": np.zeros((*inputs, *shape), dtype=dtype),
             "automaton": np.zeros(inputs, dtype=np.int64),
             "mask": np.zeros(inputs, dtype=np.int64),
             "previous": np.full(inputs, -1, dtype=np.int64),
@@ -135,7 +145,7 @@ class Streams:
 class DRQNPolicy(Policy):
     """Greedy in a frozen copy of the recurrent network, with a state per episode."""
 
-    def __init__(self, tables: Tables, encoder: Encoder, net: Recurrent) -> None:
+    def __init__(self, tables: Tables | None, encoder: Encoder, net: Recurrent) -> None:
         self.tables, self.encoder, self.net = tables, encoder, net
         self.reset(1)
 
@@ -148,8 +158,7 @@ class DRQNPolicy(Policy):
         """The greedy valid action of each episode; the states move on."""
         if len(self.previous) != env.num_envs:
             self.reset(env.num_envs)
-        automaton = self.encoder.automaton_of(env.state)
-        x = self.encoder(env.observation, automaton, env.mask, self.previous)
+        x = self.encoder(env.observation, env.automaton, env.mask, self.previous)
         with torch.no_grad():
             values, self.state = self.net(x[:, None], self.state)
         self.previous = greedy(values[:, 0], env.valid_actions())
@@ -167,17 +176,29 @@ class DRQNLearner(Learner):
 
     def __init__(
         self,
-        tables: Tables,
+        tables: Tables | None,
         config: TrainConfig,
         rng: np.random.Generator,
         phi: FloatArray | None = None,
+        *,
+        encoder: Encoder | None = None,
+        num_actions: int | None = None,
+        horizon: int | None = None,
     ) -> None:
+        """``tables``: the finite product it learns on; ``None`` for any wrapped env, with the
+        ``encoder`` of its observations (made with ``previous_action`` as the settings say),
+        its ``num_actions`` and the task's ``horizon``."""
         configure_torch()
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
         self.settings: DRQNConfig = config.drqn
         s = self.settings
-        self.num_envs, num_a = s.num_envs, tables.num_actions
-        self.encoder = Encoder(tables, previous_action=s.previous_action)
+        if tables is not None:
+            encoder = encoder or Encoder(tables, previous_action=s.previous_action)
+            num_actions, horizon = num_actions or tables.num_actions, horizon or tables.horizon
+        if encoder is None or num_actions is None or horizon is None:
+            raise ValueError("a learner of any env needs its encoder, actions and horizon")
+        self.num_envs, num_a = s.num_envs, num_actions
+        self.encoder = encoder
         self.net: Recurrent = build(
             torch_seed(rng), lambda: Recurrent(self.encoder.size, s.hidden, num_a, s.cell)
         )
@@ -188,10 +209,12 @@ class DRQNLearner(Learner):
         self.optimizer = torch.optim.Adam(self.net.parameters(), lr=s.lr)
         size, length, burn = self.net.state_size, s.sequence_length, s.burn_in
         span = (burn + length + 1,)
+        obs_shape, obs_dtype = self.encoder.observation_field
         self.replay = Ring(
             s.replay_size,
             {
-                **{name: (span, np.int64) for name in Streams.NAMES[:4]},
+                **{name: (span, np.int64) for name in Streams.NAMES[1:4]},
+                "observation": ((*span, *obs_shape), obs_dtype),
                 "burn": ((burn,), np.bool_),
                 "action": ((length,), np.int64),
                 "reward": ((length,), np.float32),
@@ -202,7 +225,9 @@ class DRQNLearner(Learner):
                 "state": ((size,), np.float32),
             },
         )
-        self.streams = Streams(s.num_envs, 4 * tables.horizon + 4, num_a, size)
+        self.streams = Streams(
+            s.num_envs, 4 * horizon + 4, num_a, size, self.encoder.observation_field
+        )
         self.state = torch.zeros(s.num_envs, size)
         self.previous = np.full(s.num_envs, -1, dtype=np.int64)
         self.vector_steps = self.gradient_steps = 0
@@ -220,7 +245,7 @@ class DRQNLearner(Learner):
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
         before = env.state
-        automaton = self.encoder.automaton_of(before)
+        automaton = env.automaton
         seen = {"observation": env.observation, "automaton": automaton, "mask": env.mask}
         self.streams.write(0, **seen, previous=self.previous, state=self.state.numpy())
         x = self.encoder(env.observation, automaton, env.mask, self.previous)
@@ -254,12 +279,20 @@ class DRQNLearner(Learner):
             reward=reward,
             gamma=gammas,
             terminated=step.terminated,
-            next_valid=self.tables.valid[step.next_state],
+            next_valid=(
+                step.next_valid
+                if step.next_valid is not None
+                else self._tables.valid[step.next_state]
+            ),
         )
         streams.write(
             1,
             observation=step.next_observation,
-            automaton=self.encoder.automaton_of(step.next_state),
+            automaton=(
+                step.next_automaton
+                if step.next_automaton is not None
+                else self.encoder.automaton_of(step.next_state)
+            ),
             mask=step.next_mask,
             previous=actions,
             state=after.numpy(),
@@ -308,9 +341,10 @@ class DRQNLearner(Learner):
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` (``ValueError`` or ``RuntimeError`` if it does not fit)."""
-        check_indices(saved["replay"]["data"], self.tables, "replay.")
-        check_indices(saved["streams"], self.tables, "streams.")
-        check_indices({"previous": saved["previous"]}, self.tables, "")
+        if self.tables is not None:
+            check_indices(saved["replay"]["data"], self.tables, "replay.")
+            check_indices(saved["streams"], self.tables, "streams.")
+            check_indices({"previous": saved["previous"]}, self.tables, "")
         length, longest = saved["length"], self.streams.data["action"].shape[1]
         if np.size(length) and not 0 <= int(np.min(length)) <= int(np.max(length)) < longest:
             raise ValueError(f"length: values outside 0..{longest - 1}")
@@ -319,6 +353,12 @@ class DRQNLearner(Learner):
         self.streams.length = np.array(saved["length"])
         self.state = saved["state"].clone()
         self.previous = np.array(saved["previous"])
+
+    @property
+    def _tables(self) -> Tables:
+        """The product's tables (a learner of the finite product only)."""
+        assert self.tables is not None, "a simulator without product states gives next_valid"
+        return self.tables
 
     def policy(self) -> DRQNPolicy:
         """Greedy in a frozen copy of the current network."""

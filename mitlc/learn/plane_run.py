@@ -27,7 +27,7 @@ from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import parse
 from mitlc.worlds.plane import PlaneWorld
 
-LEARNERS = ("dqn",)
+LEARNERS = ("dqn", "drqn")
 """The learners of a continuous world from the command line."""
 
 
@@ -66,7 +66,8 @@ def make_vector(setting: PlaneSetting, num_envs: int, seed: int) -> TaskVector:
 
 
 def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learner:
-    """The run's learner on the world's wrapped envs (DQN only, for now)."""
+    """The run's learner on the world's wrapped envs: DQN, or the recurrent DQN (for a world
+    with a noisy sensor)."""
     config = setting.config
     if config.algo not in LEARNERS:
         raise RunError(
@@ -77,17 +78,25 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
         raise RunError("shaping reads the product's states: not on a continuous world yet")
     if config.dqn.crm:
         raise RunError("counterfactual experience needs a finite product: not here")
-    from mitlc.learn.dqn import DQNLearner
     from mitlc.learn.nets import Encoder
 
     probe = make_vector(setting, 1, 0)
     space = probe.observation_space
+    recurrent = config.algo == "drqn"
     encoder = Encoder.of_spaces(
         space[probe.env_key],
         int(space["automaton"].n),
         setting.automaton.num_sets,
         probe.num_actions,
+        previous_action=recurrent and config.drqn.previous_action,
     )
+    if recurrent:
+        from mitlc.learn.drqn import DRQNLearner
+
+        return DRQNLearner(None, config, rng, encoder=encoder, num_actions=probe.num_actions,
+                           horizon=setting.world.horizon)  # fmt: skip
+    from mitlc.learn.dqn import DQNLearner
+
     return DQNLearner(None, config, rng, encoder=encoder, num_actions=probe.num_actions)
 
 
