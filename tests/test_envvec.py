@@ -171,3 +171,28 @@ def test_the_recurrent_dqn_learns_a_continuous_world_with_a_noisy_sensor(tmp_pat
 
     report = json.loads(shown.output)
     assert report["optimum"] is None and report["success_rate"] >= 0.8
+
+
+def test_tabular_q_learns_any_env_with_a_discrete_observation() -> None:
+    """Tabular Q-learning over (frontier, observation, automaton state) on wrapped toy-text
+    envs (the 3x3 lake with a deadline)."""
+    from mitlc.learn.qlearning_env import ObservedQLearner
+
+    desc = ["SHF", "FFH", "FFG"]
+    labels = {"goal": {"obs": [8]}, "hole": {"obs": [1, 5]}}
+    envs = [TaskWrapper(gym.make("FrozenLake-v1", desc=desc, is_slippery=False),
+                        "!hole U[0,6] goal", labels, horizon=8) for _ in range(16)]  # fmt: skip
+    vector = TaskVector(envs, seed=0)
+    config = resolve({}, {"q.num_envs": 16, "episodes": 2000}, discount=0.9, pomdp=False)
+    space = vector.observation_space
+    learner = ObservedQLearner(9, int(space["automaton"].n), envs[0].monitor.num_sets,
+                               vector.num_actions, config, np.random.default_rng(0))  # fmt: skip
+    done = 0
+    while done < 2000:
+        done += int(learner.train_step(vector, done / 2000).done.sum())
+    policy, wins, ended = learner.policy(), 0, 0
+    while ended < 64:
+        step = vector.step(policy.act(vector))
+        wins += int((step.success & step.done).sum())
+        ended += int(step.done.sum())
+    assert wins / ended >= 0.95

@@ -98,16 +98,16 @@ class QLearner(Learner):
             told = world & (self.tables.world_state[step.next_state] >= 0)
             batch = concatenate(select(batch, ~told), extra)
         alpha = s.alpha + (s.alpha_end - s.alpha) * min(1.0, fraction)
-        self._update(batch, alpha)
+        self._update(batch, alpha, self._values(batch.next_mask, batch.next_state))
         return step
 
-    def _update(self, batch: Batch, alpha: float) -> None:
+    def _update(self, batch: Batch, alpha: float, after: FloatArray) -> None:
         """Move each (mask, state, action) of ``batch`` toward the mean of its targets
-        ``r + gamma * max_a' Q(next)`` (0 after a terminal step)."""
+        ``r + gamma * max_a' Q(next)`` (``after``; 0 after a terminal step)."""
         reward, gammas = transition_signal(
             batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
         )
-        best = np.where(batch.terminated, 0.0, self._values(batch.next_mask, batch.next_state))
+        best = np.where(batch.terminated, 0.0, after)
         flat = np.ravel_multi_index((batch.mask, batch.state, batch.action), self.q_table.shape)
         table = self.q_table.reshape(-1)
         if table.size <= 4 * len(flat):  # many updates (counterfactuals): count in place
