@@ -196,3 +196,17 @@ def test_tabular_q_learns_any_env_with_a_discrete_observation() -> None:
         wins += int((step.success & step.done).sum())
         ended += int(step.done.sum())
     assert wins / ended >= 0.95
+
+
+def test_tile_coding_adds_the_one_hot_of_the_tile() -> None:
+    """With ``tiles``, a Box observation also gives the one-hot of its tile (row-major over
+    the axes), beside its scaled values."""
+    box = gym.spaces.Box(np.zeros(2, np.float32), np.array([10.0, 5.0], np.float32))
+    encoder = Encoder.of_spaces(box, 2, 0, 3, tiles=5)
+    x = encoder(np.array([[9.9, 0.1], [0.0, 5.0]]), np.array([0, 1]), np.array([0, 0]))
+    assert x.shape == (2, 2 + 25 + 2)
+    assert x[0, :2].tolist() == pytest.approx([0.99, 0.02])
+    tiles = x[:, 2:27]
+    assert tiles.sum(dim=1).tolist() == [1.0, 1.0]
+    assert int(tiles[0].argmax()) == 4 * 5 + 0 and int(tiles[1].argmax()) == 0 * 5 + 4
+    assert encoder.observation_field == ((2,), np.float32)

@@ -92,6 +92,9 @@ class DQNConfig:
     """Vector steps between gradient steps."""
     target_update: int = 500
     """Gradient steps between target network copies."""
+    tiles: int = 0
+    """For a Box observation (a continuous world): also a one-hot of the tile it lies in, the
+    box cut into this many tiles per axis (tile coding; 0: the values alone)."""
     crm: bool = False
     """Counterfactual experience (:mod:`mitlc.learn.crm`) in the replay memory."""
     double: bool = True
@@ -140,6 +143,9 @@ class DRQNConfig:
     """The learning rate at the end of the run as a share of ``lr`` (it falls linearly)."""
     previous_action: bool = True
     """Feed the previous action (one-hot) to the recurrent cell with the observation."""
+    tiles: int = 0
+    """For a Box observation (a continuous world): also a one-hot of the tile it lies in, the
+    box cut into this many tiles per axis (tile coding; 0: the values alone)."""
 
 
 # -- Stable-Baselines3 (mitlc.learn.sb3): the section of the sb3-* algorithms ----------------------

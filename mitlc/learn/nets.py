@@ -72,9 +72,12 @@ class Encoder:
         num_sets: int,
         num_actions: int,
         previous_action: bool = False,
+        tiles: int = 0,
     ) -> Encoder:
         """An encoder of a wrapped env's observations: its own part a ``Discrete`` space
-        (one-hot) or a bounded ``Box`` (its values scaled to [0, 1] by the bounds)."""
+        (one-hot) or a bounded ``Box`` (its values scaled to [0, 1] by the bounds, and with
+        ``tiles``, a one-hot of the tile they fall in, each axis cut into ``tiles``: tile
+        coding, Sutton and Barto, *Reinforcement Learning*, 2nd ed., Sect. 9.5.4)."""
         encoder = cls.__new__(cls)
         encoder.automaton = None
         if hasattr(observation, "n"):
@@ -85,9 +88,16 @@ class Encoder:
         high = np.asarray(observation.high, dtype=np.float32).ravel()
         if not (np.isfinite(low).all() and np.isfinite(high).all()):
             raise ValueError(f"the deep learners read a bounded Box or Discrete, not {observation}")
-        encoder._layout(len(low), (low, np.maximum(high - low, 1e-9)), num_automaton_states,
-                        num_sets, num_actions, previous_action)  # fmt: skip
+        cells = tiles ** len(low) if tiles else 0
+        if cells > 100_000:
+            raise ValueError(f"{tiles} tiles an axis over {len(low)} axes: too many tiles")
+        encoder._layout(len(low) + cells, (low, np.maximum(high - low, 1e-9)),
+                        num_automaton_states, num_sets, num_actions, previous_action)  # fmt: skip
+        encoder.tiles, encoder.box_width = tiles, len(low)
         return encoder
+
+    tiles = 0
+    box_width = 0
 
     def _layout(
         self,
@@ -113,7 +123,7 @@ class Encoder:
         values."""
         if self.box is None:
             return (), np.int64
-        return (self.aut_offset,), np.float32
+        return (self.box_width,), np.float32
 
     def automaton_of(self, states: IntArray) -> IntArray:
         """The automaton state of product states ``states`` (what the agent may know of them;
@@ -138,8 +148,13 @@ class Encoder:
             x[rows, self.obs_offset + np.ravel(observation)] = 1.0
         else:
             low, span = self.box
-            values = np.reshape(observation, (len(rows), self.aut_offset))
-            x[:, : self.aut_offset] = (values - low) / span
+            values = np.reshape(observation, (len(rows), self.box_width))
+            scaled = (values - low) / span
+            x[:, : self.box_width] = scaled
+            if self.tiles:
+                tile = np.clip((scaled * self.tiles).astype(np.int64), 0, self.tiles - 1)
+                index = np.ravel_multi_index(tuple(tile.T), (self.tiles,) * self.box_width)
+                x[rows, self.box_width + index] = 1.0
         x[rows, self.aut_offset + np.ravel(automaton)] = 1.0
         if self.num_sets:
             bits = (np.ravel(mask)[:, None] >> np.arange(self.num_sets)) & 1

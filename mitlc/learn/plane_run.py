@@ -89,6 +89,7 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
         setting.automaton.num_sets,
         probe.num_actions,
         previous_action=recurrent and config.drqn.previous_action,
+        tiles=config.drqn.tiles if recurrent else config.dqn.tiles,
     )
     if recurrent:
         from mitlc.learn.drqn import DRQNLearner
