@@ -210,3 +210,35 @@ def test_tile_coding_adds_the_one_hot_of_the_tile() -> None:
     assert tiles.sum(dim=1).tolist() == [1.0, 1.0]
     assert int(tiles[0].argmax()) == 4 * 5 + 0 and int(tiles[1].argmax()) == 0 * 5 + 4
     assert encoder.observation_field == ((2,), np.float32)
+
+
+def test_shaping_reads_the_automaton_state_without_a_product(tmp_path: Path) -> None:
+    """Without product states the shaping potential is the automaton state's (0 at an
+    episode's end), and on a finite product it is the same potential, state by state."""
+    from mitlc.automata import translate
+    from mitlc.learn.base import automaton_potential, learning_signal, potential
+    from mitlc.learn.run import prepare
+    from mitlc.syntax import parse
+    from tests.conftest import ROOT
+
+    path = tmp_path / "corridor.yaml"
+    path.write_text(CORRIDOR)
+    automaton = translate(parse("F[0,6] goal"))
+    phi = automaton_potential(automaton, 2.0)
+    vector = TaskVector([make_plane_env(path) for _ in range(3)], seed=0)
+    config = resolve({}, {"shaping": 2.0}, discount=0.9, pomdp=False)
+    right = 1
+    for _ in range(5):
+        before = vector.automaton
+        step = vector.step(np.full(3, right))
+        reward, gammas = learning_signal(step, before, config, phi)
+        assert step.next_automaton is not None
+        after = np.where(step.terminated, 0.0, phi[step.next_automaton])
+        expected = step.reward + gammas * after - phi[before]
+        assert reward.tolist() == pytest.approx(expected.tolist())
+    setting = prepare(ROOT / "specs" / "paper" / "case1.yaml", config)
+    by_state = automaton_potential(setting.automaton, 2.0)
+    product_phi = potential(setting.tables, setting.automaton, 2.0)
+    live = setting.tables.world_state >= 0
+    assert (product_phi[live] == by_state[setting.tables.automaton_state[live]]).all()
+    assert (product_phi[~live] == 0.0).all() and by_state[-1] == 0.0

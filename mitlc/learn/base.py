@@ -96,11 +96,19 @@ def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
     return result
 
 
+def automaton_potential(automaton: DigitalAutomaton, scale: float) -> FloatArray:
+    """The shaping potential of each automaton state, ``-scale`` times its distance to
+    acceptance, and one more entry, 0, for an episode's end (Ng, Harada and Russell, ICML
+    1999: potential-based shaping keeps the optimal policies)."""
+    phi: FloatArray = np.append(-scale * automaton_distance(automaton), 0.0)
+    return phi
+
+
 def potential(tables: Tables, automaton: DigitalAutomaton, scale: float) -> FloatArray:
-    """The shaping potential of each product state: ``-scale`` times the automaton's distance to
-    acceptance; 0 at the absorbing states (an episode's end)."""
-    distance = automaton_distance(automaton)
-    phi: FloatArray = -scale * distance[np.maximum(tables.automaton_state, 0)]
+    """The shaping potential of each product state: its automaton state's
+    (:func:`automaton_potential`); 0 at the absorbing states (an episode's end)."""
+    by_state = automaton_potential(automaton, scale)
+    phi: FloatArray = by_state[np.maximum(tables.automaton_state, 0)]
     phi[tables.world_state < 0] = 0.0
     return phi
 
@@ -109,8 +117,14 @@ def learning_signal(
     step: Step, before: IntArray, config: TrainConfig, phi: FloatArray | None
 ) -> tuple[FloatArray, FloatArray]:
     """The reward a learner maximises and the discount of each transition of ``step``
-    (:func:`transition_signal`)."""
-    return transition_signal(step.reward, step.accepting, before, step.next_state, config, phi)
+    (:func:`transition_signal`). ``before`` and ``phi`` are per product state; for a simulator
+    without product states (``step.next_automaton`` given) per automaton state
+    (:func:`automaton_potential`, whose last entry is an episode's end)."""
+    after = step.next_state
+    if step.next_automaton is not None:
+        end = len(phi) - 1 if phi is not None else 0
+        after = np.where(step.terminated, end, step.next_automaton)
+    return transition_signal(step.reward, step.accepting, before, after, config, phi)
 
 
 def transition_signal(

@@ -172,7 +172,8 @@ class DQNLearner(Learner):
         automaton = env.automaton
         actions = self._act(env, automaton)
         step = env.step(actions)
-        reward, gammas = learning_signal(step, state, self.config, self.phi)
+        before = state if self.tables is not None else automaton  # no product: its automaton
+        reward, gammas = learning_signal(step, before, self.config, self.phi)
         entries = {
             "observation": observation,
             "automaton": automaton,

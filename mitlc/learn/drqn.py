@@ -255,6 +255,8 @@ class DRQNLearner(Learner):
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy(values[:, 0], valid))
         step = env.step(actions)
+        if self.tables is None:  # no product states: shaping reads the automaton state
+            before = automaton
         reward, gammas = learning_signal(step, before, self.config, self.phi)
         self._record(step, actions, reward * s.reward_scale, gammas, after)
         self.vector_steps += 1

@@ -74,11 +74,12 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
             f"{config.algo} does not learn a continuous world yet (it is not finite: "
             f"use --algo {' or '.join(LEARNERS)})"
         )
-    if config.shaping:
-        raise RunError("shaping reads the product's states: not on a continuous world yet")
     if config.dqn.crm:
         raise RunError("counterfactual experience needs a finite product: not here")
+    from mitlc.learn.base import automaton_potential
     from mitlc.learn.nets import Encoder
+
+    phi = automaton_potential(setting.automaton, config.shaping) if config.shaping else None
 
     probe = make_vector(setting, 1, 0)
     space = probe.observation_space
@@ -94,11 +95,13 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
     if recurrent:
         from mitlc.learn.drqn import DRQNLearner
 
-        return DRQNLearner(None, config, rng, encoder=encoder, num_actions=probe.num_actions,
-                           horizon=setting.world.horizon)  # fmt: skip
+        return DRQNLearner(
+            None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions,
+            horizon=setting.world.horizon,
+        )  # fmt: skip
     from mitlc.learn.dqn import DQNLearner
 
-    return DQNLearner(None, config, rng, encoder=encoder, num_actions=probe.num_actions)
+    return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
 
 
 def monte_carlo_plane(
