@@ -21,15 +21,12 @@ from typing import Annotated, Any
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag
 from pydantic_core import PydanticCustomError
 
-from mitlc.limits import MAX_HORIZON
 from mitlc.worlds.grid import FieldPath, Found, render
 from mitlc.worlds.schema import (
-    Discount,
-    Horizon,
     InlineSpec,
     Proposition,
     Reward,
-    SpecRef,
+    TaskFields,
     WorldName,
     _fail,
     _is_number,
@@ -195,7 +192,7 @@ class Plane(_Model):
     )
 
 
-class PlaneWorldFile(_Model):
+class PlaneWorldFile(TaskFields):
     """A continuous world file: a room in the plane and its task."""
 
     name: WorldName | None = Field(
@@ -207,17 +204,6 @@ class PlaneWorldFile(_Model):
     labels: dict[Proposition, Label] = Field(
         default_factory=dict,
         description="For each proposition, the region (or list of regions) where it holds.",
-    )
-    spec: SpecRef = Field(
-        description="The task: a spec file's path, relative to this file, or {formula: ...}."
-    )
-    reward: Reward = Field(default=Reward(), description="The reward terms.")
-    horizon: Horizon = Field(
-        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
-    )
-    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
-    training: dict[Any, Any] = Field(
-        default_factory=dict, description="Settings for the learners: a mapping, free-form."
     )
 
 

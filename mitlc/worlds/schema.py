@@ -254,7 +254,24 @@ class Reward(_Model):
     )
 
 
-class WorldFile(_Model):
+class TaskFields(_Model):
+    """The part every world file has, whatever its world: the task, its rewards, the
+    episode's horizon, the discount and the learners' settings."""
+
+    spec: SpecRef = Field(
+        description="The task: a spec file's path, relative to this file, or {formula: ...}."
+    )
+    reward: Reward = Field(default=Reward(), description="The reward terms.")
+    horizon: Horizon = Field(
+        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
+    )
+    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
+    training: dict[Any, Any] = Field(
+        default_factory=dict, description="Settings for the learners: a mapping, free-form."
+    )
+
+
+class WorldFile(TaskFields):
     """A world file: a grid world (an MDP, or a POMDP with an observation model) and its task."""
 
     name: WorldName | None = Field(
@@ -297,17 +314,6 @@ class WorldFile(_Model):
     observation: Observation | None = Field(
         default=None,
         description="The observation model; null (the default) for a fully observed MDP.",
-    )
-    spec: SpecRef = Field(
-        description="The task: a spec file's path, relative to this file, or {formula: ...}."
-    )
-    reward: Reward = Field(default=Reward(), description="The reward terms.")
-    horizon: Horizon = Field(
-        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
-    )
-    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
-    training: dict[Any, Any] = Field(
-        default_factory=dict, description="Settings for the learners: a mapping, free-form."
     )
 
 
@@ -427,7 +433,7 @@ EnvLabel = Annotated[
 ]
 
 
-class EnvWorldFile(_Model):
+class EnvWorldFile(TaskFields):
     """A world file naming a finite gymnasium environment and its task."""
 
     name: WorldName | None = Field(
@@ -446,17 +452,6 @@ class EnvWorldFile(_Model):
         default_factory=dict,
         description="For each proposition, where it holds: {obs: [...]} or {decoded: {...}}. "
         "Every proposition of the spec must hold in some state; others are allowed.",
-    )
-    spec: SpecRef = Field(
-        description="The task: a spec file's path, relative to this file, or {formula: ...}."
-    )
-    reward: Reward = Field(default=Reward(), description="The reward terms.")
-    horizon: Horizon = Field(
-        description=f"The number of steps of an episode (at most {MAX_HORIZON:,})."
-    )
-    discount: Discount = Field(default=0.99, description="The discount factor, in (0, 1].")
-    training: dict[Any, Any] = Field(
-        default_factory=dict, description="Settings for the learners: a mapping, free-form."
     )
 
 
