@@ -64,7 +64,7 @@ import numpy as np
 from mitlc.errors import MitlcError
 from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds.grid import FieldPath, Found, render
-from mitlc.worlds.model import IntArray, Rewards, Sparse, World
+from mitlc.worlds.model import IntArray, Sparse, World
 from mitlc.worlds.schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel, show
 
 ACTION_NAMES: dict[str, tuple[str, ...]] = {
@@ -486,11 +486,6 @@ def build_world(
         spec_source=spec_source,
         horizon=file.horizon,
         discount=file.discount,
-        rewards=Rewards(
-            accept=reward.accept,
-            satisfied=reward.satisfied,
-            violated=reward.violated,
-            move=reward.move,
-        ),
+        rewards=reward.rewards(),
         start_distribution=distribution,
     )

@@ -42,7 +42,7 @@ from mitlc.worlds.grid import (
     render,
     transitions,
 )
-from mitlc.worlds.model import Observations, Rewards, World
+from mitlc.worlds.model import Observations, World
 from mitlc.worlds.plane import PlaneWorld, build_plane_world
 from mitlc.worlds.plane_schema import PlaneWorldFile
 from mitlc.worlds.schema import (
@@ -491,12 +491,7 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
         spec_source=spec_source,
         horizon=world.horizon,
         discount=world.discount,
-        rewards=Rewards(
-            accept=reward.accept,
-            satisfied=reward.satisfied,
-            violated=reward.violated,
-            move=reward.move,
-        ),
+        rewards=reward.rewards(),
         observations=observations,
     )
 

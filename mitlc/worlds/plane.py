@@ -299,12 +299,7 @@ def build_plane_world(
         spec_source=spec_source,
         horizon=file.horizon,
         discount=file.discount,
-        rewards=Rewards(
-            accept=reward.accept,
-            satisfied=reward.satisfied,
-            violated=reward.violated,
-            move=reward.move,
-        ),
+        rewards=reward.rewards(),
     )
 
 

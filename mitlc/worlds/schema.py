@@ -27,6 +27,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from mitlc.limits import MAX_HORIZON
+from mitlc.worlds.model import Rewards
 
 Action = Literal["up", "down", "left", "right", "stay"]
 ACTIONS: tuple[Action, ...] = ("up", "down", "left", "right", "stay")
@@ -252,6 +253,12 @@ class Reward(_Model):
     move: Number = Field(
         default=0.0, description="Given on each step that is not 'stay' (a cost: < 0)."
     )
+
+    def rewards(self) -> Rewards:
+        """The validated terms as the world's :class:`~mitlc.worlds.model.Rewards`."""
+        return Rewards(
+            accept=self.accept, satisfied=self.satisfied, violated=self.violated, move=self.move
+        )
 
 
 class TaskFields(_Model):
