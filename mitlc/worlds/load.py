@@ -19,7 +19,7 @@ and the offending value: ``case1.yaml:4:13: labels.a[0]: cell [7, 2] is outside 
 from __future__ import annotations
 
 import difflib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -369,13 +369,7 @@ def _load_plane(path: Path, source: _Source, task: str | None) -> PlaneWorld:
     world = _read_plane(path, source)
     spec, spec_source, propositions = _load_spec(world, path, source, task)
     missing = [p for p in propositions if p not in world.labels]
-    if missing:
-        known = ", ".join(sorted(world.labels)) or "none"
-        problems = [
-            _unlabelled(source, spec, spec_source, f"proposition {p!r} labels no region", known)
-            for p in missing
-        ]
-        raise WorldError(str(path), problems)
+    _require_labelled(path, source, (spec, spec_source), missing, world.labels, "labels no region")
     return build_plane_world(
         world,
         name=world.name or path.stem,
@@ -411,13 +405,7 @@ def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
     world = _read_env(path, source)
     spec, spec_source, propositions = _load_spec(world, path, source, task)
     missing = [p for p in propositions if p not in world.labels]
-    if missing:
-        known = ", ".join(sorted(world.labels)) or "none"
-        problems = [
-            _unlabelled(source, spec, spec_source, f"proposition {p!r} holds in no state", known)
-            for p in missing
-        ]
-        raise WorldError(filename, problems)
+    _require_labelled(path, source, (spec, spec_source), missing, world.labels, "holds in no state")
     try:
         env = gym_world.make_env(world.env)
         try:
@@ -459,13 +447,7 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
     cells = layout.cells()
     labelled = {p: set(world.labels.get(p, ())) for p in propositions}
     missing = [p for p in propositions if not labelled[p]]
-    if missing:
-        known = ", ".join(sorted(world.labels)) or "none"
-        problems = [
-            _unlabelled(source, spec, spec_source, f"proposition {p!r} labels no cell", known)
-            for p in missing
-        ]
-        raise WorldError(str(path), problems)
+    _require_labelled(path, source, (spec, spec_source), missing, world.labels, "labels no cell")
     letters = [
         sum(1 << i for i, p in enumerate(propositions) if cell in labelled[p]) for cell in cells
     ]
@@ -496,12 +478,29 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
     )
 
 
-def _unlabelled(source: _Source, spec: str, spec_source: str, what: str, known: str) -> Problem:
-    """A proposition of the task that no label declares: at the file's ``spec`` field, or, for
-    a task given in its place, naming that task."""
-    if spec_source == "<spec>":
-        return Problem(f"the task {spec!r}: {what} (labels: {known})")
-    return source.locate(("spec",), f"{what} (labels: {known})")
+def _require_labelled(
+    path: Path,
+    source: _Source,
+    task: tuple[str, str],
+    missing: list[str],
+    labels: Iterable[str],
+    where: str,
+) -> None:
+    """A :class:`WorldError` naming each proposition of the task (``(text, source)``) that no
+    label declares (``where``: "labels no cell", ...): at the file's ``spec`` field, or, for a
+    task given in its place, naming that task."""
+    if not missing:
+        return
+    spec, spec_source = task
+    known = ", ".join(sorted(labels)) or "none"
+    problems = []
+    for p in missing:
+        what = f"proposition {p!r} {where} (labels: {known})"
+        if spec_source == "<spec>":
+            problems.append(Problem(f"the task {spec!r}: {what}"))
+        else:
+            problems.append(source.locate(("spec",), what))
+    raise WorldError(str(path), problems)
 
 
 def _reason(err: OSError | ValueError) -> str:
