@@ -232,17 +232,21 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def action_masks(self) -> BoolArray:
         """Which actions are valid now (sb3-contrib's ``MaskablePPO`` convention): every env
         action and the jumps of the current automaton state."""
+        return self.masks_of(self._state.q).copy()
+
+    def masks_of(self, q: int) -> BoolArray:
+        """The valid actions in automaton state ``q`` (read-only; cached per state)."""
         if not self._discrete:
             raise TaskWrapperError(
                 f"action masks need a Discrete action space, not {self.action_space}"
             )
-        q = self._state.q
         mask = self._masks.get(q)
         if mask is None:
             mask = np.zeros(self._num_actions, dtype=np.bool_)
             mask[: self._env_actions + len(self.monitor.jumps(q))] = True
+            mask.setflags(write=False)
             self._masks[q] = mask
-        return mask.copy()
+        return mask
 
     def state_dict(self) -> dict[str, Any]:
         """The run's state for a checkpoint: the task monitor's, the letter to read next, the

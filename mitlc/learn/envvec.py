@@ -36,7 +36,6 @@ class TaskVector:
         self.env_key = next(k for k in space.spaces if k not in ("automaton", "frontier"))
         self.observation_space = space
         self.num_actions = int(self.envs[0].action_space.n)
-        self._num_sets = self.envs[0].monitor.num_sets
         observations = [env.reset(seed=seed + i)[0] for i, env in enumerate(self.envs)]
         self.observation, self.automaton, self.mask = self._stack(observations)
         self.returns = np.zeros(self.num_envs)
@@ -121,13 +120,7 @@ class TaskVector:
         return own, automaton, mask
 
     def _valid_after(self, automaton: IntArray) -> BoolArray:
-        """The actions valid in automaton states ``automaton`` (every env action, and the
-        state's jumps), read from the wrapper's monitor."""
-        valid = np.zeros((self.num_envs, self.num_actions), dtype=np.bool_)
-        first = self.envs[0]
-        env_actions = self.num_actions - first.max_jumps
-        monitor = first.monitor
-        for i, q in enumerate(automaton.tolist()):
-            valid[i, : env_actions + len(monitor.jumps(q))] = True
-        return valid
+        """The actions valid in automaton states ``automaton`` (the wrapper's masks)."""
+        masks_of = self.envs[0].masks_of
+        return np.stack([masks_of(q) for q in automaton.tolist()])
 
