@@ -33,7 +33,7 @@ def reachable(product: Product) -> list[int]:
 
 def starts(product: Product) -> dict[int, float]:
     """The start states of the product and their probabilities."""
-    return dict(product.initial_distribution or ((product.initial, 1.0),))
+    return dict(product.starts)
 
 
 def to_drn(product: Product) -> str:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from mitlc.product.explicit import Product, product_verdicts
+from mitlc.product.explicit import Product, product_verdicts, start_average
 from mitlc.task import rules
 from mitlc.worlds.model import FloatArray, IntArray
 
@@ -72,8 +72,7 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
                     next_pending[mask, states] = rows @ pending[key]
                     next_done[mask, states] = rows @ done[key]
         pending, done = _jump(next_pending, plans), _jump(next_done, plans)
-    pairs = product.initial_distribution or ((product.initial, 1.0),)
-    return float(sum(p * pending[0, x] for x, p in pairs))
+    return start_average(product, pending[0])
 
 
 def _ends(product: Product, rounds: int) -> FloatArray:

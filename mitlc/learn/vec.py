@@ -113,7 +113,7 @@ def tables(product: Product, world: World) -> Tables:
     owner = np.repeat(np.arange(n), counts)
     keep = pending[owner]
     choice[owner[keep], rank[keep]] = np.flatnonzero(keep)
-    pairs = product.initial_distribution or ((product.initial, 1.0),)
+    pairs = product.starts
     for x, _ in pairs:  # a task decided at the start: one step on the absorbing state's loop
         if not pending[x]:
             choice[x, :num_a] = product.choice_ptr[x]

@@ -61,6 +61,12 @@ class Product:
     is the one of the world's ``start``."""
 
     @property
+    def starts(self) -> tuple[tuple[int, float], ...]:
+        """:attr:`initial_distribution`, or the certain ``initial`` for a product made
+        without one."""
+        return self.initial_distribution or ((self.initial, 1.0),)
+
+    @property
     def num_states(self) -> int:
         """Product states, the two absorbing ones included."""
         return len(self.world_state)
@@ -110,8 +116,7 @@ def start_distribution(world: World) -> tuple[tuple[int, float], ...]:
 
 def start_average(product: Product, values: FloatArray) -> float:
     """``values`` (one per product state) averaged over the start distribution."""
-    pairs = product.initial_distribution or ((product.initial, 1.0),)
-    return float(sum(p * float(values[x]) for x, p in pairs))
+    return float(sum(p * float(values[x]) for x, p in product.starts))
 
 
 def automaton_letters(world: World, propositions: Sequence[str]) -> IntArray:
