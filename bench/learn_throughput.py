@@ -21,6 +21,7 @@ import numpy as np
 
 from mitlc.learn.base import random_valid
 from mitlc.learn.config import resolve
+from mitlc.learn.envvec import VectorTask
 from mitlc.learn.qlearning import QLearner
 from mitlc.learn.run import prepare
 from mitlc.learn.vec import VecProduct
@@ -87,7 +88,15 @@ def main() -> None:
                 learner.train_step(vec, 0.5)
             return 20 * vec.num_envs
 
-        rows.append(("QLearner.train_step (step + update)", n, rate(learn, args.seconds)))
+        rows.append(("QLearner.train_step on VecProduct", n, rate(learn, args.seconds)))
+        task = VectorTask(ProductVectorEnv(setting.tables, n, rng=np.random.default_rng(3)))
+
+        def learn_api(task: VectorTask = task, learner: QLearner = learner) -> int:
+            for _ in range(20):
+                learner.train_step(task, 0.5)
+            return 20 * task.num_envs
+
+        rows.append(("QLearner.train_step, VectorEnv (runs)", n, rate(learn_api, args.seconds)))
     print(f"world {WORLD}: {setting.product.num_states} product states\n")
     print(f"{'what':<38} {'episodes':>9} {'steps/s':>13} {'vs gymnasium':>13}")
     for name, n, value in rows:

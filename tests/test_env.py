@@ -103,6 +103,7 @@ def test_same_seed_same_trajectory(path: Any) -> None:
         out: list[Any] = [obs]
         for _ in range(40):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+            info = {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in info.items()}
             out.append((obs, reward, terminated, truncated, info, env.state_index()))
             if terminated or truncated:
                 obs, _ = env.reset()

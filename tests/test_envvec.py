@@ -12,7 +12,7 @@ import pytest
 from mitlc.gym import TaskWrapper
 from mitlc.learn.config import resolve
 from mitlc.learn.dqn import DQNLearner
-from mitlc.learn.envvec import TaskVector
+from mitlc.learn.envvec import VectorTask, task_vector
 from mitlc.learn.nets import Encoder
 from mitlc.worlds.load import load_plane_world
 from mitlc.worlds.plane_env import make_plane_env
@@ -33,7 +33,7 @@ discount: 0.9
 """
 
 
-def learner_for(vector: TaskVector, episodes_hint: int) -> DQNLearner:
+def learner_for(vector: VectorTask, episodes_hint: int) -> DQNLearner:
     overrides = {"algo": "dqn", "dqn.num_envs": vector.num_envs, "dqn.warmup_steps": 64,
                  "dqn.initial_value": 1.0, "dqn.epsilon_decay": 0.5,
                  "episodes": episodes_hint}  # fmt: skip
@@ -47,13 +47,13 @@ def learner_for(vector: TaskVector, episodes_hint: int) -> DQNLearner:
                       num_actions=vector.num_actions)  # fmt: skip
 
 
-def train(learner: DQNLearner, vector: TaskVector, episodes: int) -> None:
+def train(learner: DQNLearner, vector: VectorTask, episodes: int) -> None:
     done = 0
     while done < episodes:
         done += int(learner.train_step(vector, done / episodes).done.sum())  # type: ignore[arg-type]
 
 
-def greedy_success(learner: DQNLearner, vector: TaskVector, episodes: int) -> float:
+def greedy_success(learner: DQNLearner, vector: VectorTask, episodes: int) -> float:
     policy, wins, ended = learner.policy(), 0, 0
     while ended < episodes:
         step = vector.step(policy.act(vector))  # type: ignore[arg-type]
@@ -65,7 +65,7 @@ def greedy_success(learner: DQNLearner, vector: TaskVector, episodes: int) -> fl
 def test_the_vector_steps_the_wrappers_with_same_step_restarts() -> None:
     envs = [TaskWrapper(gym.make("FrozenLake-v1", is_slippery=False), "F[0,8] goal", LAKE,
                         horizon=10) for _ in range(3)]  # fmt: skip
-    vector = TaskVector(envs, seed=0)
+    vector = task_vector(envs, seed=0)
     assert vector.observation.tolist() == [0, 0, 0] and vector.automaton.tolist() == [0, 0, 0]
     right, down = 2, 1
     path = [down, down, right, right, down, right]  # 0 -> 4 -> 8 -> 9 -> 10 -> 14 -> 15
@@ -85,7 +85,7 @@ def test_dqn_learns_a_discrete_toy_text_env() -> None:
     labels = {"goal": {"obs": [8]}, "hole": {"obs": [1, 5]}}
     envs = [TaskWrapper(gym.make("FrozenLake-v1", desc=desc, is_slippery=False),
                         "!hole U[0,6] goal", labels, horizon=8) for _ in range(4)]  # fmt: skip
-    vector = TaskVector(envs, seed=0)
+    vector = task_vector(envs, seed=0)
     assert vector.observation_space["env"].n == 9
     learner = learner_for(vector, 800)
     train(learner, vector, 800)
@@ -96,7 +96,7 @@ def test_dqn_learns_a_box_observation_continuous_world(tmp_path: Path) -> None:
     path = tmp_path / "corridor.yaml"
     path.write_text(CORRIDOR)
     assert load_plane_world(path).width == 4.0
-    vector = TaskVector([make_plane_env(path) for _ in range(4)], seed=0)
+    vector = task_vector([make_plane_env(path) for _ in range(4)], seed=0)
     assert vector.observation.shape == (4, 2)
     encoder = learner_for(vector, 1).encoder
     features = encoder(vector.observation, vector.automaton, vector.mask)
@@ -182,7 +182,7 @@ def test_tabular_q_learns_any_env_with_a_discrete_observation() -> None:
     labels = {"goal": {"obs": [8]}, "hole": {"obs": [1, 5]}}
     envs = [TaskWrapper(gym.make("FrozenLake-v1", desc=desc, is_slippery=False),
                         "!hole U[0,6] goal", labels, horizon=8) for _ in range(16)]  # fmt: skip
-    vector = TaskVector(envs, seed=0)
+    vector = task_vector(envs, seed=0)
     config = resolve({}, {"q.num_envs": 16, "episodes": 2000}, discount=0.9, pomdp=False)
     space = vector.observation_space
     learner = ObservedQLearner(9, int(space["automaton"].n), envs[0].monitor.num_sets,
@@ -225,7 +225,7 @@ def test_shaping_reads_the_automaton_state_without_a_product(tmp_path: Path) -> 
     path.write_text(CORRIDOR)
     automaton = translate(parse("F[0,6] goal"))
     phi = automaton_potential(automaton, 2.0)
-    vector = TaskVector([make_plane_env(path) for _ in range(3)], seed=0)
+    vector = task_vector([make_plane_env(path) for _ in range(3)], seed=0)
     config = resolve({}, {"shaping": 2.0}, discount=0.9, pomdp=False)
     right = 1
     for _ in range(5):

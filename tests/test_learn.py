@@ -204,6 +204,8 @@ def test_accepting_discount_applies_on_accepting_steps_only() -> None:
         success=np.array([False, False]),
         episode_return=np.zeros(2),
         episode_steps=np.zeros(2, dtype=np.int64),
+        next_automaton=np.array([1, 1]),
+        next_valid=np.ones((2, 5), dtype=np.bool_),
     )
     both = step_discounts(step.accepting, Discount(mode="accepting", gamma=0.999, gamma_accept=0.9))
     assert both.tolist() == [0.9, 0.999]

@@ -93,3 +93,72 @@ def test_episode_infos_and_speed_of_the_wrapper_are_the_simulators() -> None:
             assert (info["episode"]["r"][done] == step.episode_return[done]).all()
             ended += int(done.sum())
     assert ended > 100
+
+
+class _Plain(gym.vector.VectorWrapper):
+    """The vector env with nothing but gymnasium's API (no ``step_task`` fast path)."""
+
+
+FIELDS = ("reward", "accepting", "terminated", "truncated", "episode_return", "episode_steps")
+REACHED = ("next_mask", "next_observation", "next_automaton", "next_valid")
+
+
+def test_the_learners_view_of_the_simulator_is_what_its_infos_say() -> None:
+    """``VectorTask`` reads the simulator's own step (``step_task``) or decodes the gymnasium
+    API's observations and infos: the same steps, product states included."""
+    from mitlc.learn.config import resolve
+    from mitlc.learn.envvec import VectorTask
+    from mitlc.learn.run import prepare
+    from tests.conftest import ROOT
+
+    for name in ("case1.yaml", "case2.yaml"):
+        setting = prepare(ROOT / "specs" / "paper" / name, resolve({}, {}, discount=0.99,
+                                                                   pomdp=False))  # fmt: skip
+        fast = VectorTask(ProductVectorEnv(setting.tables, 32, seed=5))
+        plain = VectorTask(_Plain(ProductVectorEnv(setting.tables, 32, seed=5)))
+        assert not hasattr(plain.venv, "step_task")
+        rng, ended = np.random.default_rng(0), 0
+        for _ in range(120):
+            assert (fast.valid_actions() == plain.valid_actions()).all()
+            assert (fast.state == plain.state).all() and (fast.automaton == plain.automaton).all()
+            masks = fast.valid_actions()
+            actions = (rng.random(masks.shape) * masks).argmax(axis=1)
+            a, b = fast.step(actions), plain.step(actions)
+            for field in (*FIELDS, *REACHED, "next_state"):
+                assert np.array_equal(getattr(a, field), getattr(b, field)), field
+            assert np.array_equal(a.success[a.done], b.success[a.done])
+            ended += int(a.done.sum())
+        assert ended > 50
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_simulator_and_a_vector_of_wrapped_envs_give_the_learners_the_same_steps(
+    seed: int,
+) -> None:
+    """On deterministic worlds, the learners' view of the product simulator and of gymnasium's
+    ``SyncVectorEnv`` of ``ProductEnv`` (``TaskWrapper`` over the grid) agree step by step
+    (the product merges decided states, so what a decided end reached is not compared)."""
+    from mitlc.learn.envvec import VectorTask, task_vector
+
+    rng = random.Random(seed)
+    actions_rng = np.random.default_rng(seed)
+    for formula in specs(seed, 5):
+        automaton = translate(formula)
+        world = random_world(rng, automaton.propositions, deterministic=True)
+        product = build_product(world, automaton)
+        if product.world_state[product.initial] < 0:
+            continue
+        ours = VectorTask(ProductVectorEnv(tables(product, world), 3, seed=seed))
+        theirs = task_vector([ProductEnv(world, automaton) for _ in range(3)], seed=seed)
+        for _ in range(3 * world.horizon):
+            masks = ours.valid_actions()
+            assert (masks == theirs.valid_actions()[:, : masks.shape[1]]).all()
+            actions = (actions_rng.random(masks.shape) * masks).argmax(axis=1)
+            a, b = ours.step(actions), theirs.step(actions)
+            for field in FIELDS:
+                assert np.array_equal(getattr(a, field), getattr(b, field)), field
+            assert np.array_equal(a.success[a.done], b.success[a.done])
+            live = ~a.terminated
+            for field in ("next_mask", "next_observation", "next_automaton"):
+                assert np.array_equal(getattr(a, field)[live], getattr(b, field)[live]), field
+            assert (a.next_valid[live] == b.next_valid[live][:, : masks.shape[1]]).all()

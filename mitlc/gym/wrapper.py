@@ -35,7 +35,10 @@ plumbing between the monitor and the environment:
   (``"add"``; a jump or an invalid action never steps the env, so adds nothing).
 * **info.** The env's last info, plus ``verdict``, ``marks`` (acceptance-set indices),
   ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
-  ``invalid_action`` and ``automaton_state``.
+  ``invalid_action``, ``automaton_state``, ``accepting`` (the step added a set to the
+  frontier: the monitor's ``new``) and, with a ``Discrete`` action space, ``action_mask`` (the
+  valid actions now, :meth:`TaskWrapper.masks_of`; gymnasium's toy-text convention, so that a
+  vector env's ``final_info`` carries the mask of the state an episode ended in).
 
 ``gymnasium.make("mitlc/Task-v0", env_id=..., env_kwargs=..., spec=..., labels=...,
 horizon=...)`` builds the inner env by id and wraps it.
@@ -283,7 +286,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._done = False
         verdict = self.monitor.verdict(state.q)
         success = self.monitor.success(state)
-        return self._observation(obs, state), self._info(info, state, verdict, 0, success, False)
+        info = self._info(info, state, verdict, 0, success, False, False)
+        return self._observation(obs, state), info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """A world action (the env steps) or an epsilon jump; see the module docstring."""
@@ -296,16 +300,19 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                     return self._jump(a - self._env_actions)
                 raise ValueError(f"action {action!r} is not in {self.action_space}")
         monitor = self.monitor
-        state, marks, _, reward, verdict, decided, success = monitor.step(self._state, self._letter)
+        state, marks, new, reward, verdict, decided, success = monitor.step(
+            self._state, self._letter
+        )
         obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
         self._env_obs, self._env_info = obs, env_info
         self._letter = letter = self._read(obs, env_info)
         if inner_terminated and not decided:  # stutter on the absorbing last position
             horizon = self.horizon
             while not decided and state.steps < horizon:
-                state, more, _, gain, verdict, decided, success = monitor.step(state, letter)
+                state, more, fresh, gain, verdict, decided, success = monitor.step(state, letter)
                 reward += gain
                 marks |= more
+                new += fresh
         self._state = state
         q, frontier, rounds, steps = state
         if q >= self._checked_below:
@@ -324,6 +331,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["step"] = steps
         info["invalid_action"] = False
         info["automaton_state"] = q
+        info["accepting"] = new > 0
+        if self._discrete:
+            info["action_mask"] = self.masks_of(q).copy()
         if self.flatten:
             return self._flat(obs, state), reward, terminated, truncated, info
         observation = {self._env_key: obs, "automaton": q, "frontier": frontier}
@@ -336,14 +346,15 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             truncated = state.steps >= self.horizon
             self._done = truncated
             verdict, success = self.monitor.verdict(state.q), self.monitor.success(state)
-            info = self._info(self._env_info, state, verdict, 0, success, True)
+            info = self._info(self._env_info, state, verdict, 0, success, True, False)
             return self._observation(self._env_obs, state), 0.0, False, truncated, info
         self._state = state = out.state
         if state.q >= self._checked_below:
             self._check_capacity(state.q)
         truncated = not out.terminated and state.steps >= self.horizon
         self._done = out.terminated or truncated
-        info = self._info(self._env_info, state, out.verdict, 0, out.success, False)
+        accepting = out.new > 0
+        info = self._info(self._env_info, state, out.verdict, 0, out.success, False, accepting)
         return self._observation(self._env_obs, state), out.reward, out.terminated, truncated, info
 
     # -- internals -----------------------------------------------------------------------------
@@ -395,6 +406,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         marks: int,
         success: bool,
         invalid: bool,
+        accepting: bool,
     ) -> dict[str, Any]:
         """The env's ``info`` with the task's entries (those of :meth:`step`, spelled out there
         for speed: keep the two alike)."""
@@ -406,6 +418,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["step"] = state.steps
         info["invalid_action"] = invalid
         info["automaton_state"] = state.q
+        info["accepting"] = accepting
+        if self._discrete:
+            info["action_mask"] = self.masks_of(state.q).copy()
         return info
 
 

@@ -4,24 +4,49 @@ action choice under a validity mask."""
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.learn.config import Discount, TrainConfig
-from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.learn.vec import Step, Tables
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
+class Episodes(Protocol):
+    """A batch of episodes as the learners read it: :class:`mitlc.learn.envvec.VectorTask`
+    over any vector env of wrapped envs (mitlc's simulator of a finite product included).
+    ``state`` is the product state (-1 without a finite product)."""
+
+    num_envs: int
+
+    @property
+    def observation(self) -> Any: ...
+
+    @property
+    def automaton(self) -> IntArray: ...
+
+    @property
+    def mask(self) -> IntArray: ...
+
+    @property
+    def state(self) -> IntArray: ...
+
+    def valid_actions(self) -> BoolArray: ...
+
+    def step(self, actions: IntArray) -> Step: ...
+
+
 class Policy(ABC):
-    """A greedy policy acting in a :class:`VecProduct`; it may remember each episode's past."""
+    """A greedy policy acting in a batch of :class:`Episodes`; it may remember each episode's
+    past."""
 
     def reset(self, num_envs: int) -> None:  # noqa: B027 - stateless policies need nothing
         """Forget everything: ``num_envs`` fresh episodes begin."""
 
     @abstractmethod
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The action of each episode of ``env`` (valid ones only)."""
 
     def observe(self, step: Step) -> None:  # noqa: B027 - stateless policies need nothing
@@ -34,7 +59,7 @@ class Learner(ABC):
     num_envs: int
 
     @abstractmethod
-    def train_step(self, env: VecProduct, fraction: float) -> Step:
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """Choose actions (exploring), step ``env`` once and learn; ``fraction`` is the share
         of the run's episodes done so far (for schedules)."""
 
@@ -117,14 +142,25 @@ def learning_signal(
     step: Step, before: IntArray, config: TrainConfig, phi: FloatArray | None
 ) -> tuple[FloatArray, FloatArray]:
     """The reward a learner maximises and the discount of each transition of ``step``
-    (:func:`transition_signal`). ``before`` and ``phi`` are per product state; for a simulator
-    without product states (``step.next_automaton`` given) per automaton state
-    (:func:`automaton_potential`, whose last entry is an episode's end)."""
-    after = step.next_state
-    if step.next_automaton is not None:
-        end = len(phi) - 1 if phi is not None else 0
-        after = np.where(step.terminated, end, step.next_automaton)
-    return transition_signal(step.reward, step.accepting, before, after, config, phi)
+    (:func:`transition_signal`): the shaping reads the automaton state of the observation,
+    ``before`` the step and ``step.next_automaton`` after it (an ended episode's end where the
+    task was decided); ``phi`` is :func:`automaton_potential`."""
+    return transition_signal(
+        step.reward, step.accepting, before, after_automaton(step, phi), config, phi
+    )
+
+
+def after_automaton(step: Step | None, phi: FloatArray | None, *,
+                    automaton: IntArray | None = None,
+                    terminated: BoolArray | None = None) -> IntArray:  # fmt: skip
+    """The index into :func:`automaton_potential` of the state each transition reached: its
+    automaton state, or the last entry (an episode's end) where the task was decided."""
+    if step is not None:
+        automaton, terminated = step.next_automaton, step.terminated
+    assert automaton is not None and terminated is not None
+    end = len(phi) - 1 if phi is not None else 0
+    after: IntArray = np.where(terminated, end, automaton)
+    return after
 
 
 def transition_signal(

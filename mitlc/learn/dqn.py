@@ -23,8 +23,10 @@ import numpy as np
 import torch
 
 from mitlc.learn.base import (
+    Episodes,
     Learner,
     Policy,
+    after_automaton,
     epsilon_at,
     learning_signal,
     random_valid,
@@ -50,8 +52,8 @@ from mitlc.learn.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.learn.vec import Step, Tables, VecProduct
-from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+from mitlc.learn.vec import Step, Tables
+from mitlc.worlds.model import FloatArray, IntArray
 
 
 class DQNPolicy(Policy):
@@ -66,7 +68,7 @@ class DQNPolicy(Policy):
             values: torch.Tensor = self.net(self.encoder(observation, automaton, mask))
         return values
 
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode."""
         return greedy(self.values(env.observation, env.automaton, env.mask), env.valid_actions())
 
@@ -103,7 +105,7 @@ class DQNLearner(Learner):
         num_actions: int | None = None,
     ) -> None:
         """``tables``: the finite product it learns on; ``None`` for any wrapped env
-        (:class:`mitlc.learn.envvec.TaskVector`), with the ``encoder`` of its observations
+        (:class:`mitlc.learn.envvec.VectorTask`), with the ``encoder`` of its observations
         (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
@@ -152,7 +154,7 @@ class DQNLearner(Learner):
         """The exploration rate of the last step."""
         return self._epsilon
 
-    def _act(self, env: VecProduct, automaton: IntArray) -> IntArray:
+    def _act(self, env: Episodes, automaton: IntArray) -> IntArray:
         """Epsilon-greedy valid actions (the network runs only when some episode exploits)."""
         valid = env.valid_actions()
         explore = self.rng.random(env.num_envs) < self._epsilon
@@ -163,7 +165,7 @@ class DQNLearner(Learner):
             actions = np.where(explore, actions, greedy(values, valid))
         return actions
 
-    def train_step(self, env: VecProduct, fraction: float) -> Step:
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """One epsilon-greedy step of every episode; store it; learn every ``train_every``."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
@@ -172,8 +174,7 @@ class DQNLearner(Learner):
         automaton = env.automaton
         actions = self._act(env, automaton)
         step = env.step(actions)
-        before = state if self.tables is not None else automaton  # no product: its automaton
-        reward, gammas = learning_signal(step, before, self.config, self.phi)
+        reward, gammas = learning_signal(step, automaton, self.config, self.phi)
         entries = {
             "observation": observation,
             "automaton": automaton,
@@ -183,16 +184,14 @@ class DQNLearner(Learner):
             "gamma": gammas,
             "terminated": step.terminated,
             "next_observation": step.next_observation,
-            "next_automaton": self._next_automaton(step),
+            "next_automaton": step.next_automaton,
             "next_mask": step.next_mask,
-            "next_valid": self._next_valid(step),
+            "next_valid": step.next_valid,
         }
         if self.counterfactuals is not None:
             tables = self.tables
             assert tables is not None, "counterfactuals come from a finite product"
-            told = (actions < tables.num_world_actions) & (
-                tables.world_state[step.next_state] >= 0
-            )
+            told = (actions < tables.num_world_actions) & (tables.world_state[step.next_state] >= 0)
             entries = {name: values[~told] for name, values in entries.items()}
             self.replay.add(self._entries(self.counterfactuals.of(state, actions, step.next_state)))
         self.replay.add(entries)
@@ -201,39 +200,28 @@ class DQNLearner(Learner):
             self._learn()
         return step
 
-    def _next_automaton(self, step: Step) -> IntArray:
-        """The automaton state each episode reached: the simulator's, or the product's."""
-        if step.next_automaton is not None:
-            return step.next_automaton
-        return self.encoder.automaton_of(step.next_state)
-
-    def _next_valid(self, step: Step) -> BoolArray:
-        """The actions valid where each episode arrived."""
-        if step.next_valid is not None:
-            return step.next_valid
-        assert self.tables is not None
-        valid: BoolArray = self.tables.valid[step.next_state]
-        return valid
-
     def _entries(self, batch: Batch) -> dict[str, Any]:
         """Replay entries of transitions between product states (an MDP: the observation is
         the cell)."""
+        automaton = self.encoder.automaton_of(batch.state)
+        reached = self.encoder.automaton_of(batch.next_state)
+        after = after_automaton(None, self.phi, automaton=reached, terminated=batch.terminated)
         reward, gammas = transition_signal(
-            batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
+            batch.reward, batch.accepting, automaton, after, self.config, self.phi
         )
         tables = self.tables
         assert tables is not None, "counterfactuals come from a finite product"
         world = tables.world_state
         return {
             "observation": np.maximum(world[batch.state], 0),
-            "automaton": self.encoder.automaton_of(batch.state),
+            "automaton": automaton,
             "mask": batch.mask,
             "action": batch.action,
             "reward": reward * self.settings.reward_scale,
             "gamma": gammas,
             "terminated": batch.terminated,
             "next_observation": np.maximum(world[batch.next_state], 0),
-            "next_automaton": self.encoder.automaton_of(batch.next_state),
+            "next_automaton": reached,
             "next_mask": batch.next_mask,
             "next_valid": tables.valid[batch.next_state],
         }

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from mitlc.learn.base import Learner, Policy, epsilon_at, learning_signal, random_valid
+from mitlc.learn.base import Episodes, Learner, Policy, epsilon_at, learning_signal, random_valid
 from mitlc.learn.config import DRQNConfig, TrainConfig
 from mitlc.learn.nets import (
     Encoder,
@@ -44,7 +44,7 @@ from mitlc.learn.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.learn.vec import Step, Tables
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
@@ -154,7 +154,7 @@ class DRQNPolicy(Policy):
         self.state = torch.zeros(num_envs, self.net.state_size)
         self.previous = np.full(num_envs, -1, dtype=np.int64)
 
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode; the states move on."""
         if len(self.previous) != env.num_envs:
             self.reset(env.num_envs)
@@ -238,13 +238,12 @@ class DRQNLearner(Learner):
         """The exploration rate of the last step."""
         return self._epsilon
 
-    def train_step(self, env: VecProduct, fraction: float) -> Step:
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """One epsilon-greedy step of every episode; store finished segments; learn every
         ``train_every`` steps once enough sequences are stored."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
-        before = env.state
         automaton = env.automaton
         seen = {"observation": env.observation, "automaton": automaton, "mask": env.mask}
         self.streams.write(0, **seen, previous=self.previous, state=self.state.numpy())
@@ -255,9 +254,7 @@ class DRQNLearner(Learner):
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy(values[:, 0], valid))
         step = env.step(actions)
-        if self.tables is None:  # no product states: shaping reads the automaton state
-            before = automaton
-        reward, gammas = learning_signal(step, before, self.config, self.phi)
+        reward, gammas = learning_signal(step, automaton, self.config, self.phi)
         self._record(step, actions, reward * s.reward_scale, gammas, after)
         self.vector_steps += 1
         if self.replay.size >= s.warmup_sequences and self.vector_steps % s.train_every == 0:
@@ -281,20 +278,12 @@ class DRQNLearner(Learner):
             reward=reward,
             gamma=gammas,
             terminated=step.terminated,
-            next_valid=(
-                step.next_valid
-                if step.next_valid is not None
-                else self._tables.valid[step.next_state]
-            ),
+            next_valid=step.next_valid,
         )
         streams.write(
             1,
             observation=step.next_observation,
-            automaton=(
-                step.next_automaton
-                if step.next_automaton is not None
-                else self.encoder.automaton_of(step.next_state)
-            ),
+            automaton=step.next_automaton,
             mask=step.next_mask,
             previous=actions,
             state=after.numpy(),
@@ -355,12 +344,6 @@ class DRQNLearner(Learner):
         self.streams.length = np.array(saved["length"])
         self.state = saved["state"].clone()
         self.previous = np.array(saved["previous"])
-
-    @property
-    def _tables(self) -> Tables:
-        """The product's tables (a learner of the finite product only)."""
-        assert self.tables is not None, "a simulator without product states gives next_valid"
-        return self.tables
 
     def policy(self) -> DRQNPolicy:
         """Greedy in a frozen copy of the current network."""

@@ -3,7 +3,7 @@ simulator and greedy evaluation.
 
 A continuous world is not finite, so there is no product: the learner (DQN, the deep learner
 that reads a Box observation, :meth:`mitlc.learn.nets.Encoder.of_spaces`) steps a
-:class:`mitlc.learn.envvec.TaskVector` of the world's wrapped envs
+:class:`mitlc.learn.envvec.VectorTask` of the world's wrapped envs
 (:func:`mitlc.worlds.plane_env.make_plane_env`), and the run directory, metrics and checkpoints
 are those of :mod:`mitlc.learn.run`. A checkpoint holds the learner, the tally and, for each
 env, the robot's position, the task monitor's state and the env's random state, so a resumed
@@ -15,13 +15,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
+from gymnasium.spaces import Discrete
 
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.learn.base import Learner, Policy
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.envvec import TaskVector
+from mitlc.learn.envvec import VectorTask, task_vector
 from mitlc.learn.rundir import RunError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import parse
@@ -57,12 +59,12 @@ def prepare_plane(
     return PlaneSetting(world_path, world, automaton, config)
 
 
-def make_vector(setting: PlaneSetting, num_envs: int, seed: int) -> TaskVector:
+def make_vector(setting: PlaneSetting, num_envs: int, seed: int) -> VectorTask:
     """``num_envs`` wrapped envs of the world, the first reset with ``seed``."""
     from mitlc.worlds.plane_env import plane_task
 
     envs = [plane_task(setting.world, automaton=setting.automaton) for _ in range(num_envs)]
-    return TaskVector(envs, seed=seed)
+    return task_vector(envs, seed=seed)
 
 
 def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learner:
@@ -86,7 +88,7 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
     recurrent = config.algo == "drqn"
     encoder = Encoder.of_spaces(
         space[probe.env_key],
-        int(space["automaton"].n),
+        int(cast("Discrete", space["automaton"]).n),
         setting.automaton.num_sets,
         probe.num_actions,
         previous_action=recurrent and config.drqn.previous_action,
@@ -113,7 +115,7 @@ def monte_carlo_plane(
     policy.reset(width)
     wins, returns, ended = 0, 0.0, 0
     while ended < episodes:
-        step = vector.step(policy.act(vector))  # type: ignore[arg-type]
+        step = vector.step(policy.act(vector))
         policy.observe(step)
         done = np.flatnonzero(step.done)[: episodes - ended]
         wins += int(step.success[done].sum())
@@ -133,12 +135,11 @@ def rollouts_plane(
         x, y = vector.envs[0].unwrapped.position
         path = [(float(x), float(y))]
         while True:
-            step = vector.step(policy.act(vector))  # type: ignore[arg-type]
+            step = vector.step(policy.act(vector))
             policy.observe(step)
-            x, y = vector.infos[0]["position"]
+            x, y = vector.reached("position")[0]
             path.append((float(x), float(y)))
             if step.done[0]:
                 drawn.append((path, bool(step.success[0])))
                 break
     return drawn
-

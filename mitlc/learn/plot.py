@@ -411,4 +411,3 @@ def plot_run(
     timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
     render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
     return [*written, automaton]
-

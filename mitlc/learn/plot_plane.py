@@ -170,8 +170,7 @@ def plot_plane_run(
     wins = sum(success for _, success in drawn)
     formula = textwrap.fill(setting.automaton.formula, 110)
     title = (
-        f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n"
-        f"{formula}"
+        f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n{formula}"
     )
     room = out / TRAJECTORIES
     figure = plane_figure(setting.world, [path for path, _ in drawn], title)

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.learn.base import (
+    Episodes,
     Learner,
     Policy,
     epsilon_at,
@@ -26,7 +27,7 @@ from mitlc.learn.base import (
 )
 from mitlc.learn.config import QConfig, TrainConfig
 from mitlc.learn.crm import Batch, Counterfactuals, concatenate, select
-from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.learn.vec import Step, Tables
 from mitlc.worlds.model import FloatArray, IntArray
 
 
@@ -36,7 +37,7 @@ class TabularPolicy(Policy):
     def __init__(self, tables: Tables, q_table: FloatArray) -> None:
         self.tables, self.q_table = tables, q_table
 
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The greedy action of each episode."""
         return masked_argmax(self.q_table[env.mask, env.state], self.tables.valid[env.state])
 
@@ -76,7 +77,7 @@ class QLearner(Learner):
         """The exploration rate of the last step."""
         return self._epsilon
 
-    def train_step(self, env: VecProduct, fraction: float) -> Step:
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """One epsilon-greedy step of every episode and its update (with counterfactual
         experience on: the update of every automaton state and frontier the world steps
         tell about, :mod:`mitlc.learn.crm`)."""

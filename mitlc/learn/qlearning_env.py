@@ -1,5 +1,5 @@
 """Tabular Q-learning on any wrapped env with a discrete observation
-(:class:`mitlc.learn.envvec.TaskVector`): the table is indexed by ``(frontier, observation,
+(:class:`mitlc.learn.envvec.VectorTask`): the table is indexed by ``(frontier, observation,
 automaton state)`` in place of the product's states, and the valid actions are the wrapper's
 masks. The update is :class:`mitlc.learn.qlearning.QLearner`'s (Watkins and Dayan, 1992),
 the one definition of it."""
@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mitlc.learn.base import Policy, epsilon_at, masked_argmax, random_valid
+from mitlc.learn.base import Episodes, Policy, epsilon_at, masked_argmax, random_valid
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.crm import Batch
-from mitlc.learn.envvec import TaskVector
 from mitlc.learn.qlearning import QLearner
 from mitlc.learn.vec import Step
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
@@ -23,7 +22,7 @@ class ObservedTabularPolicy(Policy):
     def __init__(self, q_table: FloatArray, num_q: int) -> None:
         self.q_table, self.num_q = q_table, num_q
 
-    def act(self, env: TaskVector) -> IntArray:  # type: ignore[override]
+    def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode."""
         index = np.asarray(env.observation, dtype=np.int64) * self.num_q + env.automaton
         return masked_argmax(self.q_table[env.mask, index], env.valid_actions())
@@ -49,7 +48,7 @@ class ObservedQLearner(QLearner):
         self.q_table = np.full(shape, self.settings.initial_value)
         self._epsilon = self.settings.epsilon_start
 
-    def train_step(self, env: TaskVector, fraction: float) -> Step:  # type: ignore[override]
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """One epsilon-greedy step of every episode and its update."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)

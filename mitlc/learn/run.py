@@ -39,13 +39,15 @@ from mitlc.automata import DigitalAutomaton, translate
 from mitlc.automata.dot import write_atomically
 from mitlc.errors import MitlcError
 from mitlc.learn import checkpoint
-from mitlc.learn.base import Learner, potential
+from mitlc.learn.base import Learner, automaton_potential, potential
 from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
+from mitlc.learn.envvec import VectorTask
 from mitlc.learn.plane_run import PlaneSetting, make_plane_learner, make_vector, prepare_plane
 from mitlc.learn.rundir import RunError as RunError
 from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
-from mitlc.learn.vec import Tables, VecProduct, tables
+from mitlc.learn.vec import Tables, tables
+from mitlc.learn.vector import ProductVectorEnv
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
@@ -124,7 +126,13 @@ def prepare(
 def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     """The learner ``setting.config.algo`` names (the deep ones import torch)."""
     config = setting.config
-    phi = potential(setting.tables, setting.automaton, config.shaping) if config.shaping else None
+    phi = None
+    if config.shaping:  # per product state for the table, per automaton state for the nets
+        phi = (
+            potential(setting.tables, setting.automaton, config.shaping)
+            if config.algo == "q"
+            else automaton_potential(setting.automaton, config.shaping)
+        )
     if setting.world.is_pomdp and config.algo != "drqn":
         raise RunError(
             f"{config.algo} learns on the true cell, which a POMDP's agent does not see: use "
@@ -216,9 +224,7 @@ def is_plane_run(directory: Path) -> bool:
     return Path(data["world"]).is_file() and is_plane_world(data["world"])
 
 
-def load_learner(
-    directory: Path, *, deadline: Deadline | None = None
-) -> tuple[Setting, Learner]:
+def load_learner(directory: Path, *, deadline: Deadline | None = None) -> tuple[Setting, Learner]:
     """The run in ``directory``: its setting, and its learner as last checkpointed."""
     setting = load_setting(directory, deadline=deadline)
     if setting.config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
@@ -246,7 +252,8 @@ def _build(
             seed = int(env_rng.integers(2**31))
             return learner, make_vector(setting, learner.num_envs, seed)
         learner = make_learner(setting, learner_rng)
-        return learner, VecProduct(setting.tables, learner.num_envs, env_rng)
+        venv = ProductVectorEnv(setting.tables, learner.num_envs, rng=env_rng)
+        return learner, VectorTask(venv)
     except (ValueError, TypeError, MemoryError, RuntimeError, OverflowError) as err:
         raise RunError(
             f"{where}: cannot build the learner from these settings ({one_line(err)})"

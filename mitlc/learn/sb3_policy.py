@@ -20,12 +20,12 @@ import numpy as np
 import torch
 
 from mitlc.learn import checkpoint
-from mitlc.learn.base import Learner, Policy
+from mitlc.learn.base import Episodes, Learner, Policy
 from mitlc.learn.nets import Encoder, build, configure_torch, greedy
 from mitlc.learn.run import RunError, Setting
 from mitlc.learn.sb3 import algorithm, sb3_settings, wrapped_env
 from mitlc.learn.state import Mismatch, conform
-from mitlc.learn.vec import Step, VecProduct
+from mitlc.learn.vec import Step
 from mitlc.worlds.model import IntArray
 
 CHUNK = 4096
@@ -33,8 +33,9 @@ CHUNK = 4096
 
 
 class SB3Policy(Policy):
-    """An SB3 policy acting greedily in a :class:`VecProduct` (see the module docstring);
-    memoryless, so :meth:`choices` gives it for exact evaluation on an MDP."""
+    """An SB3 policy acting greedily in a batch of :class:`~mitlc.learn.base.Episodes` (see
+    the module docstring); memoryless, so :meth:`choices` gives it for exact evaluation on an
+    MDP."""
 
     def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
         self.net, self.encoder, self.tables = net, encoder, setting.tables
@@ -48,9 +49,9 @@ class SB3Policy(Policy):
         logits: torch.Tensor = self.net.get_distribution(x).distribution.logits
         return logits
 
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode."""
-        x = self.encoder(env.observation, self.encoder.automaton_of(env.state), env.mask)
+        x = self.encoder(env.observation, env.automaton, env.mask)
         with torch.no_grad():
             return greedy(self.scores(x), env.valid_actions())
 
@@ -75,8 +76,9 @@ class SB3Policy(Policy):
 
 
 class SB3RecurrentPolicy(Policy):
-    """A recurrent PPO policy acting greedily in a :class:`VecProduct`, its LSTM state carried
-    over each episode and restarted with the next."""
+    """A recurrent PPO policy acting greedily in a batch of
+    :class:`~mitlc.learn.base.Episodes`, its LSTM state carried over each episode and
+    restarted with the next."""
 
     def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
         self.net, self.encoder = net, encoder
@@ -88,9 +90,9 @@ class SB3RecurrentPolicy(Policy):
         self.lstm = (torch.zeros(layers, num_envs, hidden), torch.zeros(layers, num_envs, hidden))
         self.starts = torch.ones(num_envs)
 
-    def act(self, env: VecProduct) -> IntArray:
+    def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode."""
-        x = self.encoder(env.observation, self.encoder.automaton_of(env.state), env.mask)
+        x = self.encoder(env.observation, env.automaton, env.mask)
         with torch.no_grad():
             distribution, self.lstm = self.net.get_distribution(x, self.lstm, self.starts)
         self.starts = torch.zeros(env.num_envs)
@@ -112,7 +114,7 @@ class SB3Learner(Learner):
             setting.tables, num_automaton_states=len(setting.automaton.states)
         )  # the layout of the wrapper's flat observation, which the network was trained on
 
-    def train_step(self, env: VecProduct, fraction: float) -> Step:
+    def train_step(self, env: Episodes, fraction: float) -> Step:
         """Not here: an sb3 run trains through :func:`train`."""
         raise RunError("an sb3 run trains through mitlc.learn.sb3.train")
 

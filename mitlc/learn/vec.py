@@ -178,11 +178,10 @@ class Step:
     """The return so far of each episode, this step included (complete for ended ones)."""
     episode_steps: IntArray
     """World actions taken so far in each episode, this step included."""
-    next_automaton: IntArray | None = None
-    """The automaton state reached (a simulator without product states gives it; for the
-    product's it is read from ``next_state``)."""
-    next_valid: BoolArray | None = None
-    """The actions valid in the state reached (likewise)."""
+    next_automaton: IntArray
+    """The automaton state reached (0 at the product's absorbing states)."""
+    next_valid: BoolArray
+    """The actions valid in the state reached."""
 
     @property
     def done(self) -> BoolArray:
@@ -296,6 +295,8 @@ class VecProduct:
             success=success,
             episode_return=self.returns.copy(),
             episode_steps=self.steps.copy(),
+            next_automaton=np.maximum(t.automaton_state[nxt], 0),
+            next_valid=t.valid[nxt],
         )
         self.state, self.mask, self.observation = nxt, mask, observation
         self._restart(result.done)
