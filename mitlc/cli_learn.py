@@ -45,6 +45,11 @@ def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, s
         pomdp = raw.plane.sensor is not None
         if not pomdp and "algo" not in overrides and "algo" not in raw.training:
             overrides = {**overrides, "algo": "dqn"}
+    elif hasattr(raw, "env") and "algo" not in overrides and "algo" not in raw.training:
+        from mitlc.worlds.env_task import is_open_world
+
+        if is_open_world(world_file):  # an env that is not finite: DQN reads any observation
+            overrides = {**overrides, "algo": "dqn"}
     config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
     return config, raw.name or world_file.stem
 
@@ -254,7 +259,7 @@ def _print_evaluation(
         rows.append(("learned, exact", f"{report.exact:.6f}"))
     kind = "fully observable upper bound" if report.pomdp else "optimum"
     if report.optimum is None:
-        rows.append(("optimum", "none: a continuous world is not finite (no exact optimum)"))
+        rows.append(("optimum", "none: this world is not finite (no exact optimum)"))
     else:
         rows.append((kind, f"{report.optimum:.6f}"))
     if report.lower is not None:

@@ -106,9 +106,13 @@ def test_dqn_learns_a_box_observation_continuous_world(tmp_path: Path) -> None:
     assert greedy_success(learner, vector, 40) >= 0.95
 
 
-def test_an_unbounded_box_is_refused() -> None:
+def test_an_unbounded_axis_is_read_as_it_is_and_refused_tiles() -> None:
+    box = gym.spaces.Box(np.array([-np.inf, 0.0], np.float32), np.array([np.inf, 4.0], np.float32))
+    encoder = Encoder.of_spaces(box, 3, 0, 2)
+    x = encoder(np.array([[-7.5, 1.0]]), np.array([0]), np.array([0]))
+    assert x[0, :2].tolist() == [-7.5, 0.25]
     with pytest.raises(ValueError, match="bounded Box"):
-        Encoder.of_spaces(gym.spaces.Box(-np.inf, np.inf, (2,)), 3, 0, 2)
+        Encoder.of_spaces(box, 3, 0, 2, tiles=4)
 
 
 # --- a continuous world from the command line ------------------------------------------------

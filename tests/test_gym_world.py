@@ -306,7 +306,8 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     ),
     "bad label": (
         {"labels": {"goal": {"cells": [[3, 3]]}, "hole": {"obs": [5]}}},
-        'labels.goal: expected {obs: [...]} or {decoded: {...}}, got {"cells": [[3, 3]]}',
+        'labels.goal: expected {obs: [...]}, {decoded: {...}}, {box: {...}}, {disc: {...}}, '
+        '{info: key} or a list of them, got {"cells": [[3, 3]]}',
     ),
     "obs out of range": (
         {"labels": {"goal": {"obs": [16]}, "hole": {"obs": [5]}}},
@@ -376,9 +377,9 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     ),
     "not finite": (
         {"env": {"id": "CartPole-v1"}},
-        "env.id: CartPole-v1 has no transition table (env.unwrapped.P): not a finite world; "
-        "mitlc cannot check it (nor train it from a world file yet): wrap it with "
-        "mitlc.gym.TaskWrapper to learn it",
+        "env.id: CartPole-v1 has no transition table (env.unwrapped.P): not a finite world, "
+        "so there is no exact optimum to check; mitlc train learns it through the task "
+        "wrapper",
     ),
     "compatibility layer": (
         {"env": {"id": "GymV26Environment-v0", "kwargs": {"env_id": "os:system"}}},

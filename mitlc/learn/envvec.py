@@ -127,6 +127,14 @@ class VectorTask:
         for name in VIEW:
             if len(saved[name]) != self.num_envs:
                 raise ValueError(f"{name}: {len(saved[name])} episodes saved, {self.num_envs} here")
+        if not all(hasattr(env.unwrapped, "load_state_dict") for env in envs):
+            # an env whose own state cannot be saved: its running episodes start over, from a
+            # seed the checkpoint fixes (the resumed run is reproducible, not the same)
+            self.returns = np.zeros(self.num_envs)
+            self.steps = np.zeros(self.num_envs, dtype=np.int64)
+            obs, infos = self.venv.reset(seed=int(np.sum(saved["steps"])) + 1)
+            self._take(obs, infos)
+            return
         for env, state in zip(envs, saved["envs"], strict=True):
             env.load_state_dict(state)
         for name in VIEW:

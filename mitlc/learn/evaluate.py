@@ -66,7 +66,7 @@ class Evaluation:
     """The policy's exact success probability (memoryless policies on MDPs)."""
     optimum: float | None
     """``pmax_horizon`` of the product (fully observable: an upper bound for a POMDP);
-    ``None`` for a continuous world, which has none."""
+    ``None`` for a world that is not finite, which has none."""
     pomdp: bool
     bounds: dict[str, Any] | None
     seconds: float
@@ -86,7 +86,7 @@ class Evaluation:
 
     def _optimum_kind(self) -> str:
         if self.optimum is None:
-            return "none: a continuous world has no exact optimum"
+            return "none: this world is not finite (no exact optimum)"
         return "fully observable upper bound" if self.pomdp else "exact"
 
     def summary(self) -> dict[str, Any]:
@@ -117,14 +117,15 @@ class Evaluation:
 
 
 def _plane_evaluation(directory: Path, episodes: int | None, seed: int) -> Evaluation:
-    """A continuous world's run: greedy episodes in its wrapped envs, no optimum."""
-    from mitlc.learn.plane_run import monte_carlo_plane
-    from mitlc.learn.run import load_plane_learner
+    """The run of a world that is not finite: greedy episodes in its wrapped envs, no
+    optimum."""
+    from mitlc.learn.plane_run import monte_carlo_open
+    from mitlc.learn.run import load_open_learner
 
     start = time.perf_counter()
-    setting, learner = load_plane_learner(directory)
+    setting, learner = load_open_learner(directory)
     count = episodes if episodes is not None else setting.config.eval_episodes
-    successes, mean_return = monte_carlo_plane(setting, learner.policy(), count, seed)
+    successes, mean_return = monte_carlo_open(setting, learner.policy(), count, seed)
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,
@@ -169,9 +170,9 @@ def evaluate(
     worlds; needs stormpy). The set-up and the exact figures stop at ``deadline`` (by default
     :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds); the POMDP bounds are left out when the
     time runs out during them."""
-    from mitlc.learn.run import is_plane_run
+    from mitlc.learn.run import is_open_run
 
-    if is_plane_run(Path(directory)):
+    if is_open_run(Path(directory)):
         return _plane_evaluation(Path(directory), episodes, seed)
     start = time.perf_counter()
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "evaluation")

@@ -43,6 +43,10 @@ def build(seed: int, factory: Any) -> Any:
         return factory()
 
 
+UNBOUNDED = 1e6
+"""A Box bound past this (in absolute value) leaves its axis unscaled."""
+
+
 class Encoder:
     """One-hot observation, one-hot automaton state (absorbing states: 0), the frontier mask's
     bits and, with ``previous_action``, a one-hot of the previous action (an extra slot for
@@ -75,19 +79,24 @@ class Encoder:
         tiles: int = 0,
     ) -> Encoder:
         """An encoder of a wrapped env's observations: its own part a ``Discrete`` space
-        (one-hot) or a bounded ``Box`` (its values scaled to [0, 1] by the bounds, and with
-        ``tiles``, a one-hot of the tile they fall in, each axis cut into ``tiles``: tile
-        coding, Sutton and Barto, *Reinforcement Learning*, 2nd ed., Sect. 9.5.4)."""
+        (one-hot) or a ``Box``: the values of its bounded axes scaled to [0, 1] by the bounds,
+        those of an unbounded axis (a bound infinite or past 1e6) as they are; with ``tiles``
+        (every axis bounded), also a one-hot of the tile the values fall in, each axis cut
+        into ``tiles`` (tile coding, Sutton and Barto, *Reinforcement Learning*, 2nd ed.,
+        Sect. 9.5.4)."""
         encoder = cls.__new__(cls)
         encoder.automaton = None
         if hasattr(observation, "n"):
             encoder._layout(int(observation.n), None, num_automaton_states, num_sets,
                             num_actions, previous_action)  # fmt: skip
             return encoder
-        low = np.asarray(observation.low, dtype=np.float32).ravel()
-        high = np.asarray(observation.high, dtype=np.float32).ravel()
-        if not (np.isfinite(low).all() and np.isfinite(high).all()):
-            raise ValueError(f"the deep learners read a bounded Box or Discrete, not {observation}")
+        low = np.asarray(observation.low, dtype=np.float64).ravel()
+        high = np.asarray(observation.high, dtype=np.float64).ravel()
+        bounded = (np.abs(low) <= UNBOUNDED) & (np.abs(high) <= UNBOUNDED)
+        if tiles and not bounded.all():
+            raise ValueError(f"tiles need a bounded Box, not {observation}")
+        low, high = np.where(bounded, low, 0.0), np.where(bounded, high, 1.0)
+        low, high = low.astype(np.float32), high.astype(np.float32)
         cells = tiles ** len(low) if tiles else 0
         if cells > 100_000:
             raise ValueError(f"{tiles} tiles an axis over {len(low)} axes: too many tiles")

@@ -1,14 +1,16 @@
-"""Learning a continuous world (``plane:``) from the command line: its setting, learner,
-simulator and greedy evaluation.
+"""Learning a world that is not finite from the command line: a continuous world (``plane:``)
+or a gymnasium env without a transition table (``env:``, :mod:`mitlc.worlds.env_task`). Its
+setting, learner, vector of wrapped envs and greedy evaluation.
 
-A continuous world is not finite, so there is no product: the learner (DQN, the deep learner
-that reads a Box observation, :meth:`mitlc.learn.nets.Encoder.of_spaces`) steps a
-:class:`mitlc.learn.envvec.VectorTask` of the world's wrapped envs
-(:func:`mitlc.worlds.plane_env.make_plane_env`), and the run directory, metrics and checkpoints
-are those of :mod:`mitlc.learn.run`. A checkpoint holds the learner, the tally and, for each
-env, the robot's position, the task monitor's state and the env's random state, so a resumed
-run goes on exactly. Evaluation is Monte-Carlo only: no exact optimum exists, and the reports
-say so.
+There is no product: the learner steps a :class:`mitlc.learn.envvec.VectorTask` of the world's
+wrapped envs (:func:`mitlc.worlds.plane_env.plane_task`, :meth:`EnvTask.make`): DQN or the
+recurrent DQN on any observation (:meth:`mitlc.learn.nets.Encoder.of_spaces`), or tabular
+Q-learning where the env's observation is discrete
+(:class:`mitlc.learn.qlearning_env.ObservedQLearner`). The run directory, metrics and
+checkpoints are those of :mod:`mitlc.learn.run`. A checkpoint holds the learner, the tally and,
+for each env, the task monitor's state and, where the env has one (a continuous world's
+robot), the env's state, so a resumed run of a continuous world goes on exactly. Evaluation is
+Monte-Carlo only: no exact optimum exists, and the reports say so.
 """
 
 from __future__ import annotations
@@ -27,68 +29,89 @@ from mitlc.learn.envvec import VectorTask, task_vector
 from mitlc.learn.rundir import RunError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import parse
+from mitlc.worlds.env_task import EnvTask
 from mitlc.worlds.plane import PlaneWorld
 
-LEARNERS = ("dqn", "drqn")
-"""The learners of a continuous world from the command line."""
+LEARNERS = ("q", "dqn", "drqn")
+"""The learners of a world that is not finite (``q`` for a discrete observation only)."""
 
 
 @dataclass(frozen=True, slots=True)
-class PlaneSetting:
-    """A continuous world's run: the world, its task's automaton and the settings."""
+class OpenSetting:
+    """The run of a world that is not finite: the world, its task's automaton, the settings."""
 
     world_path: Path
-    world: PlaneWorld
+    world: PlaneWorld | EnvTask
     automaton: DigitalAutomaton
     config: TrainConfig
 
 
-def prepare_plane(
+def prepare_open(
     world_path: Path,
     config: TrainConfig,
     spec: str | None = None,
     *,
     deadline: Deadline | None = None,
-) -> PlaneSetting:
-    """Load the continuous world and compile its task (``spec`` in its place if given)."""
-    from mitlc.worlds.load import load_plane_world
+) -> OpenSetting:
+    """Load the world and compile its task (``spec`` in its place if given)."""
+    from mitlc.worlds.env_task import load_env_task
+    from mitlc.worlds.load import is_plane_world, load_plane_world
 
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "setting up the run")
-    world = load_plane_world(world_path, spec)
+    world: PlaneWorld | EnvTask = (
+        load_plane_world(world_path, spec)
+        if is_plane_world(world_path)
+        else load_env_task(world_path, spec)
+    )
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
-    return PlaneSetting(world_path, world, automaton, config)
+    return OpenSetting(world_path, world, automaton, config)
 
 
-def make_vector(setting: PlaneSetting, num_envs: int, seed: int) -> VectorTask:
+def make_vector(setting: OpenSetting, num_envs: int, seed: int) -> VectorTask:
     """``num_envs`` wrapped envs of the world, the first reset with ``seed``."""
     from mitlc.worlds.plane_env import plane_task
 
-    envs = [plane_task(setting.world, automaton=setting.automaton) for _ in range(num_envs)]
+    world, automaton = setting.world, setting.automaton
+    if isinstance(world, PlaneWorld):
+        envs = [plane_task(world, automaton=automaton) for _ in range(num_envs)]
+    else:
+        envs = [world.make(automaton) for _ in range(num_envs)]
     return task_vector(envs, seed=seed)
 
 
-def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learner:
-    """The run's learner on the world's wrapped envs: DQN, or the recurrent DQN (for a world
-    with a noisy sensor)."""
+def make_open_learner(setting: OpenSetting, rng: np.random.Generator) -> Learner:
+    """The run's learner on the world's wrapped envs: DQN, the recurrent DQN (for a world
+    with a noisy sensor) or, on a discrete observation, tabular Q-learning."""
     config = setting.config
     if config.algo not in LEARNERS:
         raise RunError(
-            f"{config.algo} does not learn a continuous world yet (it is not finite: "
-            f"use --algo {' or '.join(LEARNERS)})"
+            f"{config.algo} does not learn this world yet (it is not finite: "
+            f"use --algo {', '.join(LEARNERS)})"
         )
-    if config.dqn.crm:
+    if (config.algo == "dqn" and config.dqn.crm) or (config.algo == "q" and config.q.crm):
         raise RunError("counterfactual experience needs a finite product: not here")
     from mitlc.learn.base import automaton_potential
     from mitlc.learn.nets import Encoder
 
     phi = automaton_potential(setting.automaton, config.shaping) if config.shaping else None
-
     probe = make_vector(setting, 1, 0)
     space = probe.observation_space
+    own = space[probe.env_key]
+    num_q = int(cast("Discrete", space["automaton"]).n)
+    if config.algo == "q":
+        if not isinstance(own, Discrete):
+            raise RunError(f"tabular Q-learning needs a discrete observation, not {own}: use "
+                           "--algo dqn or drqn")  # fmt: skip
+        if phi is not None:
+            raise RunError("shaping with tabular Q-learning needs a finite product: not here")
+        from mitlc.learn.qlearning_env import ObservedQLearner
+
+        return ObservedQLearner(int(own.n), num_q, setting.automaton.num_sets,
+                                probe.num_actions, config, rng)  # fmt: skip
     recurrent = config.algo == "drqn"
     encoder = Encoder.of_spaces(
-        space[probe.env_key],
-        int(cast("Discrete", space["automaton"]).n),
+        own,
+        num_q,
         setting.automaton.num_sets,
         probe.num_actions,
         previous_action=recurrent and config.drqn.previous_action,
@@ -106,8 +129,8 @@ def make_plane_learner(setting: PlaneSetting, rng: np.random.Generator) -> Learn
     return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
 
 
-def monte_carlo_plane(
-    setting: PlaneSetting, policy: Policy, episodes: int, seed: int
+def monte_carlo_open(
+    setting: OpenSetting, policy: Policy, episodes: int, seed: int
 ) -> tuple[int, float]:
     """Successes and mean return of ``episodes`` greedy episodes (64 at a time)."""
     width = min(64, episodes)
@@ -125,7 +148,7 @@ def monte_carlo_plane(
 
 
 def rollouts_plane(
-    setting: PlaneSetting, policy: Policy, count: int, seed: int
+    setting: OpenSetting, policy: Policy, count: int, seed: int
 ) -> list[tuple[list[tuple[float, float]], bool]]:
     """``count`` greedy trajectories (positions) and whether each succeeded."""
     drawn = []

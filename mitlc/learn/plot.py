@@ -35,7 +35,7 @@ from mitlc.learn.run import (
     METRICS,
     RunError,
     Setting,
-    is_plane_run,
+    is_open_run,
     load_learner,
     read_config,
 )
@@ -387,7 +387,7 @@ def plot_run(
     out = directory if out is None else Path(out)
     data, config = read_config(directory)
     metrics = read_metrics(directory)
-    if is_plane_run(directory):  # a continuous world: drawn in its room
+    if is_open_run(directory):  # a continuous world: drawn in its room
         from mitlc.learn.plot_plane import plot_plane_run
 
         return plot_plane_run(directory, out, data, metrics, trajectories, seed)

@@ -42,7 +42,7 @@ from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner, automaton_potential, potential
 from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
 from mitlc.learn.envvec import VectorTask
-from mitlc.learn.plane_run import PlaneSetting, make_plane_learner, make_vector, prepare_plane
+from mitlc.learn.plane_run import OpenSetting, make_open_learner, make_vector, prepare_open
 from mitlc.learn.rundir import RunError as RunError
 from mitlc.learn.rundir import locked, read_json, read_metrics_rows
 from mitlc.learn.state import Stateful, one_line, restore
@@ -52,7 +52,7 @@ from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
 from mitlc.worlds import World, load_world
-from mitlc.worlds.load import is_plane_world
+from mitlc.worlds.env_task import is_open_world
 
 CONFIG, METRICS, CHECKPOINT, SUMMARY = (
     "config.json",
@@ -207,21 +207,28 @@ def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Settin
         raise RunError(f"{directory / CONFIG}: the run's world or task: {one_line(err)}") from None
 
 
-def load_plane_learner(directory: Path) -> tuple[PlaneSetting, Learner]:
+def load_open_learner(directory: Path) -> tuple[OpenSetting, Learner]:
     """The run of a continuous world in ``directory``: its setting, and its learner as last
     checkpointed."""
     data, config = read_config(directory)
-    setting = prepare_plane(Path(data["world"]), config, data["spec"])
+    setting = prepare_open(Path(data["world"]), config, data["spec"])
     _, learner_rng = _rngs(config.seed)
     learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
     _restore(directory, learner, env, _Tally())
     return setting, learner
 
 
-def is_plane_run(directory: Path) -> bool:
-    """Whether the run in ``directory`` learns a continuous world."""
+def is_open_run(directory: Path) -> bool:
+    """Whether the run in ``directory`` learns a world that is not finite (a continuous world,
+    an env without a transition table); a world file that no longer loads is left to the
+    finite path, which reports it."""
     data, _ = read_config(directory)
-    return Path(data["world"]).is_file() and is_plane_world(data["world"])
+    if not Path(data["world"]).is_file():
+        return False
+    try:
+        return is_open_world(data["world"])
+    except MitlcError:
+        return False
 
 
 def load_learner(directory: Path, *, deadline: Deadline | None = None) -> tuple[Setting, Learner]:
@@ -239,7 +246,7 @@ def load_learner(directory: Path, *, deadline: Deadline | None = None) -> tuple[
 
 def _build(
     where: Path | str,
-    setting: Setting | PlaneSetting,
+    setting: Setting | OpenSetting,
     learner_rng: np.random.Generator,
     env_rng: np.random.Generator,
 ) -> tuple[Learner, Any]:
@@ -247,8 +254,8 @@ def _build(
     a continuous world a vector of its wrapped envs (sizes the machine cannot hold are a
     :class:`RunError` naming ``where`` the settings come from)."""
     try:
-        if isinstance(setting, PlaneSetting):
-            learner = make_plane_learner(setting, learner_rng)
+        if isinstance(setting, OpenSetting):
+            learner = make_open_learner(setting, learner_rng)
             seed = int(env_rng.integers(2**31))
             return learner, make_vector(setting, learner.num_envs, seed)
         learner = make_learner(setting, learner_rng)
@@ -292,7 +299,7 @@ def _restore(directory: Path, learner: Learner, env: Any, tally: _Tally) -> None
         raise RunError(f"{loaded.files['json']}: tally.steps is not the checkpoint's steps")
 
 
-def _start(directory: Path, setting: Setting | PlaneSetting, spec: str, resume: bool) -> None:
+def _start(directory: Path, setting: Setting | OpenSetting, spec: str, resume: bool) -> None:
     """Check the run directory (locked by the caller) for a fresh run or a resumed one."""
     if not resume:
         if (directory / CONFIG).exists() or checkpoint.exists(directory):
@@ -308,7 +315,7 @@ def _start(directory: Path, setting: Setting | PlaneSetting, spec: str, resume: 
         raise RunError(f"{directory}: --resume with another world or task than the run's")
 
 
-def _save_config(directory: Path, setting: Setting | PlaneSetting) -> None:
+def _save_config(directory: Path, setting: Setting | OpenSetting) -> None:
     _write_json(
         directory / CONFIG,
         {
@@ -353,9 +360,9 @@ def train(
             should_stop=should_stop, deadline=deadline,
         )  # fmt: skip
     directory = Path(out)
-    setting: Setting | PlaneSetting
-    if is_plane_world(world_path):  # a continuous world: mitlc.learn.plane_run
-        setting = prepare_plane(Path(world_path), config, spec, deadline=deadline)
+    setting: Setting | OpenSetting
+    if is_open_world(world_path):  # not finite: mitlc.learn.plane_run
+        setting = prepare_open(Path(world_path), config, spec, deadline=deadline)
     else:
         setting = prepare(Path(world_path), config, spec, deadline=deadline)
     if resume:
@@ -369,7 +376,7 @@ def train(
 
 def _train(
     directory: Path,
-    setting: Setting | PlaneSetting,
+    setting: Setting | OpenSetting,
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,

@@ -55,6 +55,7 @@ import contextlib
 import difflib
 import math
 import operator
+import re
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
@@ -117,9 +118,43 @@ def check_file(file: EnvWorldFile) -> Found:
         where: FieldPath = ("labels", name)
         if isinstance(label, ObsLabel):
             _once((*where, "obs"), "observation", label.obs, found)
-        else:
+        elif isinstance(label, DecodedLabel):
             _check_decoding((*where, "decoded"), label.decoded, found)
+        else:
+            found.extend(form_problems({name: label}, None))
     return found
+
+
+def declarations(labels: Mapping[str, Any]) -> dict[str, Any]:
+    """An env world file's labels as :mod:`mitlc.labels` declarations (plain data)."""
+    return {p: v.model_dump() if isinstance(v, ObsLabel | DecodedLabel) else v
+            for p, v in labels.items()}  # fmt: skip
+
+
+def form_problems(labels: Mapping[str, Any], space: Any) -> Found:
+    """What :func:`mitlc.labels.compile_labels` finds wrong with ``labels`` (checked against
+    ``space`` when given), as the field path and the message (its first problem)."""
+    from mitlc.labels import LabelDeclarationError, compile_labels
+
+    try:
+        compile_labels(declarations(labels), space)
+    except LabelDeclarationError as err:
+        return [field_problem(str(err))]
+    return []
+
+
+_STEP = re.compile(r"\.([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
+
+
+def field_problem(message: str) -> tuple[FieldPath, str]:
+    """``"labels.goal[0].box: expected ..."`` as ``(("labels", "goal", 0, "box"), "expected
+    ...")``."""
+    where, _, text = message.partition(": ")
+    head, _, rest = where.partition(".")
+    path: list[str | int] = [head]
+    for name, index in _STEP.findall("." + rest if rest else ""):
+        path.append(int(index) if index else name)
+    return tuple(path), text
 
 
 def _yaml_value(value: object, path: FieldPath, found: Found) -> None:
@@ -241,8 +276,8 @@ def require_finite(env: Any, env_id: str) -> None:
         missing = "start distribution (env.unwrapped.initial_state_distrib)"
     if missing is not None:
         message = (
-            f"{env_id} has no {missing}: not a finite world; mitlc cannot check it (nor "
-            "train it from a world file yet): wrap it with mitlc.gym.TaskWrapper to learn it"
+            f"{env_id} has no {missing}: not a finite world, so there is no exact optimum to "
+            "check; mitlc train learns it through the task wrapper"
         )
         raise NotFiniteError([(ENV_ID, message)])
 
@@ -250,10 +285,14 @@ def require_finite(env: Any, env_id: str) -> None:
 # --- labels ---------------------------------------------------------------------------------
 
 
-def _check_labels(labels: Mapping[str, ObsLabel | DecodedLabel], n: int, found: Found) -> None:
-    """The labels against the env's ``n`` observations."""
+def _check_labels(labels: Mapping[str, Any], space: Any, found: Found) -> None:
+    """The labels against the env's observation space (``n`` discrete observations)."""
+    n = int(space.n)
     for name, label in labels.items():
         where: FieldPath = ("labels", name)
+        if not isinstance(label, ObsLabel | DecodedLabel):
+            found.extend(form_problems({name: label}, space))
+            continue
         if isinstance(label, ObsLabel):
             for i, s in enumerate(label.obs):
                 if s >= n:
@@ -276,15 +315,13 @@ def _check_labels(labels: Mapping[str, ObsLabel | DecodedLabel], n: int, found: 
             )
 
 
-def letters_of(
-    labels: Mapping[str, ObsLabel | DecodedLabel], propositions: Sequence[str], n: int
-) -> IntArray:
+def letters_of(labels: Mapping[str, Any], propositions: Sequence[str], n: int) -> IntArray:
     """``letters[s]``: the letter of state ``s`` over ``propositions`` (bit ``i`` for
     ``propositions[i]``; a proposition without a label holds nowhere), read through the one
     definition of declarative labels (:mod:`mitlc.labels`), the gymnasium wrapper's."""
     from mitlc.labels import compile_labels, letters_of_states
 
-    declared = {p: labels[p].model_dump() for p in propositions if p in labels}
+    declared = declarations({p: labels[p] for p in propositions if p in labels})
     letters = np.zeros(n, dtype=np.int64)
     if declared:
         named = tuple(declared)
@@ -455,7 +492,7 @@ def build_world(
             [(ENV_ID, f"{env_id} has {n:,} states (at most {MAX_ENV_STATES:,}, mitlc's limit)")]
         )
     found: Found = []
-    _check_labels(file.labels, n, found)
+    _check_labels(file.labels, env.observation_space, found)
     if found:
         raise GymWorldError(found)
     actions = action_names(file, env, m)

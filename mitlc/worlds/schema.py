@@ -22,6 +22,7 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    WithJsonSchema,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
@@ -424,24 +425,65 @@ class DecodedLabel(_Model):
     decoded: Decoding = Field(description="The decoding and the condition on its fields.")
 
 
+FORM_KEYS = ("box", "disc", "info", "key")
+"""Keys that make an env world's label one of :mod:`mitlc.labels`' other forms."""
+
+
 def _label_kind(value: Any) -> str | None:
+    if isinstance(value, list):
+        return "form"
     if isinstance(value, dict):
+        if any(k in value for k in FORM_KEYS):
+            return "form"
+        decoded = value.get("decoded")
+        if isinstance(decoded, dict) and "key" in decoded:
+            return "form"
         return "obs" if "obs" in value else "decoded" if "decoded" in value else None
     return None
 
 
+FormLabel = Annotated[
+    dict[str, Any] | list[Any],
+    WithJsonSchema(
+        {
+            "description": "Another of mitlc.labels' forms, or a list of forms.",
+            "oneOf": [
+                {"type": "array", "minItems": 1},
+                {
+                    "type": "object",
+                    "anyOf": [
+                        *({"required": [key]} for key in FORM_KEYS),
+                        {
+                            "required": ["decoded"],
+                            "properties": {"decoded": {"type": "object", "required": ["key"]}},
+                        },
+                    ],
+                },
+            ],
+        }
+    ),
+]
+"""A label in another of :mod:`mitlc.labels`' forms (a box or disc in a Box observation, an
+``info`` key, a part of a Dict observation, or a list of forms), checked by
+:func:`mitlc.labels.compile_labels` against the env's observation space."""
+
 EnvLabel = Annotated[
-    Annotated[ObsLabel, Tag("obs")] | Annotated[DecodedLabel, Tag("decoded")],
+    Annotated[ObsLabel, Tag("obs")]
+    | Annotated[DecodedLabel, Tag("decoded")]
+    | Annotated[FormLabel, Tag("form")],
     Discriminator(
         _label_kind,
         custom_error_type="label_kind",
-        custom_error_message="expected {obs: [...]} or {decoded: {...}}",
+        custom_error_message="expected {obs: [...]}, {decoded: {...}}, {box: {...}}, "
+        "{disc: {...}}, {info: key} or a list of them",
     ),
 ]
 
 
 class EnvWorldFile(TaskFields):
-    """A world file naming a finite gymnasium environment and its task."""
+    """A world file naming a gymnasium environment and its task: a finite one (a transition
+    table) is checked and learned as a world; any other is learned through the task
+    wrapper."""
 
     name: WorldName | None = Field(
         default=None,
@@ -457,8 +499,10 @@ class EnvWorldFile(TaskFields):
     )
     labels: dict[Proposition, EnvLabel] = Field(
         default_factory=dict,
-        description="For each proposition, where it holds: {obs: [...]} or {decoded: {...}}. "
-        "Every proposition of the spec must hold in some state; others are allowed.",
+        description="For each proposition, where it holds: {obs: [...]} or {decoded: {...}} "
+        "for a discrete observation; {box: {index, low, high}}, {disc: {index, center, "
+        "radius}} for a Box one; {info: key}; 'key' for a part of a Dict observation; or a "
+        "list of these (any of them). Every proposition of the spec must be labelled.",
     )
 
 
