@@ -200,3 +200,47 @@ def test_a_stopped_run_checkpoints_and_a_resumed_one_finishes(tmp_path: Path) ->
     done = sb3.train(CASE1, config, out, resume=True)
     assert not done.stopped and done.steps >= 512 and (out / "summary.json").exists()
     assert json.loads((out / "checkpoint.json").read_text())["steps"] == done.steps
+
+
+@pytest.mark.parametrize("world", ["plane", "dict"])
+def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
+    tmp_path: Path, world: str
+) -> None:
+    """``--algo sb3-ppo`` on a continuous world and on an env with a Dict observation: eval
+    and plot run, and the policy mitlc evaluates (its features of the learners' view) chooses
+    what ``predict(obs, deterministic=True)`` chooses on the wrapper's flat observation."""
+    import tests.open_envs  # noqa: F401 - registers MitlcTest/DictChain-v0
+    from mitlc.learn.envvec import task_vector
+    from mitlc.learn.plane_run import open_env
+    from mitlc.learn.run import load_open_learner
+    from tests.test_env_task import DICT_CHAIN
+    from tests.test_envvec import CORRIDOR
+
+    path = tmp_path / f"{world}.yaml"
+    path.write_text(CORRIDOR if world == "plane" else DICT_CHAIN)
+    out = tmp_path / "run"
+    sets = [item for s in [*TINY["sb3-ppo"], "sb3.steps=512", "sb3.num_envs=2"]
+            for item in ("--set", s)]  # fmt: skip
+    done = runner.invoke(app, ["train", str(path), "--algo", "sb3-ppo", "--out", str(out),
+                               *sets, "--quiet", "--no-eval"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    shown = runner.invoke(app, ["eval", str(out), "--episodes", "20", "--json"])
+    assert shown.exit_code == 0 and json.loads(shown.output)["optimum"] is None, shown.output
+    assert runner.invoke(app, ["plot", str(out)]).exit_code == 0
+    setting, learner = load_open_learner(out)
+    policy = learner.policy()
+    flat = [open_env(setting, flatten=True) for _ in range(3)]
+    view = task_vector([open_env(setting) for _ in range(3)], seed=7)
+    observations = [env.reset(seed=7 + i)[0] for i, env in enumerate(flat)]
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        chosen = policy.act(view)
+        net: Any = learner.net  # type: ignore[attr-defined]
+        for i in range(len(flat)):
+            action, _ = net.predict(observations[i], deterministic=True)
+            assert int(action) == int(chosen[i])
+        actions = rng.integers(view.num_actions, size=3)
+        view.step(actions)
+        for i, env in enumerate(flat):
+            obs, _, terminated, truncated, _ = env.step(int(actions[i]))
+            observations[i] = env.reset()[0] if terminated or truncated else obs

@@ -77,13 +77,15 @@ class Encoder:
         num_actions: int,
         previous_action: bool = False,
         tiles: int = 0,
+        scaled: bool = True,
     ) -> Encoder:
         """An encoder of a wrapped env's observations: its own part a ``Discrete`` space
         (one-hot) or a ``Box``: the values of its bounded axes scaled to [0, 1] by the bounds,
         those of an unbounded axis (a bound infinite or past 1e6) as they are; with ``tiles``
         (every axis bounded), also a one-hot of the tile the values fall in, each axis cut
         into ``tiles`` (tile coding, Sutton and Barto, *Reinforcement Learning*, 2nd ed.,
-        Sect. 9.5.4)."""
+        Sect. 9.5.4). ``scaled=False`` reads every axis as it is: the layout of
+        :class:`mitlc.gym.TaskWrapper`'s flat observation, which SB3's networks learn on."""
         encoder = cls.__new__(cls)
         encoder.automaton = None
         if hasattr(observation, "n"):
@@ -92,7 +94,7 @@ class Encoder:
             return encoder
         low = np.asarray(observation.low, dtype=np.float64).ravel()
         high = np.asarray(observation.high, dtype=np.float64).ravel()
-        bounded = (np.abs(low) <= UNBOUNDED) & (np.abs(high) <= UNBOUNDED)
+        bounded = (np.abs(low) <= UNBOUNDED) & (np.abs(high) <= UNBOUNDED) & scaled
         if tiles and not bounded.all():
             raise ValueError(f"tiles need a bounded Box, not {observation}")
         low, high = np.where(bounded, low, 0.0), np.where(bounded, high, 1.0)

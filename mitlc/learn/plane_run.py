@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from gymnasium.spaces import Discrete
@@ -67,16 +67,19 @@ def prepare_open(
     return OpenSetting(world_path, world, automaton, config)
 
 
-def make_vector(setting: OpenSetting, num_envs: int, seed: int) -> VectorTask:
-    """``num_envs`` wrapped envs of the world, the first reset with ``seed``."""
+def open_env(setting: OpenSetting, *, flatten: bool = False) -> Any:
+    """A fresh wrapped env of the world (:class:`mitlc.gym.TaskWrapper`)."""
     from mitlc.worlds.plane_env import plane_task
 
     world, automaton = setting.world, setting.automaton
     if isinstance(world, PlaneWorld):
-        envs = [plane_task(world, automaton=automaton) for _ in range(num_envs)]
-    else:
-        envs = [world.make(automaton) for _ in range(num_envs)]
-    return task_vector(envs, seed=seed)
+        return plane_task(world, automaton=automaton, flatten=flatten)
+    return world.make(automaton, flatten=flatten)
+
+
+def make_vector(setting: OpenSetting, num_envs: int, seed: int) -> VectorTask:
+    """``num_envs`` wrapped envs of the world, the first reset with ``seed``."""
+    return task_vector([open_env(setting) for _ in range(num_envs)], seed=seed)
 
 
 def make_open_learner(setting: OpenSetting, rng: np.random.Generator) -> Learner:

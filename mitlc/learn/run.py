@@ -208,10 +208,14 @@ def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Settin
 
 
 def load_open_learner(directory: Path) -> tuple[OpenSetting, Learner]:
-    """The run of a continuous world in ``directory``: its setting, and its learner as last
-    checkpointed."""
+    """The run of a world that is not finite in ``directory``: its setting, and its learner
+    as last checkpointed."""
     data, config = read_config(directory)
     setting = prepare_open(Path(data["world"]), config, data["spec"])
+    if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
+        from mitlc.learn import sb3
+
+        return setting, sb3.load_learner(directory, setting)
     _, learner_rng = _rngs(config.seed)
     learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
     _restore(directory, learner, env, _Tally())

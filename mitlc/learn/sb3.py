@@ -51,6 +51,7 @@ from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.nets import configure_torch
+from mitlc.learn.plane_run import OpenSetting, open_env, prepare_open
 from mitlc.learn.run import (
     CONFIG,
     METRICS,
@@ -72,6 +73,7 @@ from mitlc.learn.rundir import locked
 from mitlc.learn.state import one_line, restore
 from mitlc.limits import Deadline
 from mitlc.product.env import ProductEnv
+from mitlc.worlds.env_task import is_open_world
 
 Vectors = npt.NDArray[np.float32]
 
@@ -99,10 +101,13 @@ def algorithm(algo: str) -> tuple[Any, str]:
 # -- the observation -------------------------------------------------------------------------------
 
 
-def wrapped_env(setting: Setting) -> ProductEnv:
-    """The env an sb3 run learns on: the world's product env with the wrapper's flat
-    observation (one-hot world observation, one-hot automaton state, frontier bits: the
-    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network)."""
+def wrapped_env(setting: Setting | OpenSetting) -> Any:
+    """The env an sb3 run learns on: the world's wrapped env with the wrapper's flat
+    observation (the env's observation flattened, one-hot automaton state, frontier bits: the
+    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network):
+    the product env of a finite world, else the continuous world's or the env's own."""
+    if isinstance(setting, OpenSetting):
+        return open_env(setting, flatten=True)
     return ProductEnv(setting.world, setting.automaton, flatten=True)
 
 
@@ -182,7 +187,11 @@ def train(
         raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
     algorithm(config.algo)  # SB3 installed?
     directory = Path(out)
-    setting = prepare(Path(world_path), config, spec, deadline=deadline)
+    setting: Setting | OpenSetting = (
+        prepare_open(Path(world_path), config, spec, deadline=deadline)
+        if is_open_world(world_path)
+        else prepare(Path(world_path), config, spec, deadline=deadline)
+    )
     if resume:
         read_config(directory)
     else:
@@ -192,7 +201,7 @@ def train(
         return _train(directory, setting, resume, progress, should_stop)
 
 
-def _start(directory: Path, setting: Setting, resume: bool) -> None:
+def _start(directory: Path, setting: Setting | OpenSetting, resume: bool) -> None:
     """Check the locked run directory for a fresh run or a resumed one."""
     if not resume:
         if (directory / CONFIG).exists() or checkpoint.exists(directory):
@@ -213,7 +222,7 @@ def _start(directory: Path, setting: Setting, resume: bool) -> None:
 
 def _train(
     directory: Path,
-    setting: Setting,
+    setting: Setting | OpenSetting,
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,
@@ -340,7 +349,7 @@ class _Run:
 # -- eval and plot ---------------------------------------------------------------------------------
 
 
-def load_learner(directory: Path, setting: Setting) -> Learner:
+def load_learner(directory: Path, setting: Setting | OpenSetting) -> Learner:
     """The policy of the sb3 run in ``directory`` (:func:`mitlc.learn.sb3_policy.load_learner`),
     for :func:`mitlc.learn.run.load_learner`."""
     from mitlc.learn import sb3_policy

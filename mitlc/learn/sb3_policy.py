@@ -22,6 +22,7 @@ import torch
 from mitlc.learn import checkpoint
 from mitlc.learn.base import Episodes, Learner, Policy
 from mitlc.learn.nets import Encoder, build, configure_torch, greedy
+from mitlc.learn.plane_run import OpenSetting, make_vector
 from mitlc.learn.run import RunError, Setting
 from mitlc.learn.sb3 import algorithm, sb3_settings, wrapped_env
 from mitlc.learn.state import Mismatch, conform
@@ -37,8 +38,9 @@ class SB3Policy(Policy):
     the module docstring); memoryless, so :meth:`choices` gives it for exact evaluation on an
     MDP."""
 
-    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
-        self.net, self.encoder, self.tables = net, encoder, setting.tables
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting | OpenSetting) -> None:
+        self.net, self.encoder = net, encoder
+        self.tables = setting.tables if isinstance(setting, Setting) else None
         self.dqn = setting.config.algo == "sb3-dqn"
 
     def scores(self, x: torch.Tensor) -> torch.Tensor:
@@ -60,6 +62,7 @@ class SB3Policy(Policy):
         (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success` (an MDP,
         where the observation is the cell)."""
         t = self.tables
+        assert t is not None, "exact evaluation needs the finite product"
         cells = np.maximum(t.world_state, 0)
         chosen = np.full((t.all_sets + 1, t.num_states), -1, dtype=np.int64)
         for mask in range(t.all_sets + 1):
@@ -80,7 +83,7 @@ class SB3RecurrentPolicy(Policy):
     :class:`~mitlc.learn.base.Episodes`, its LSTM state carried over each episode and
     restarted with the next."""
 
-    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting | OpenSetting) -> None:
         self.net, self.encoder = net, encoder
         self.reset(1)
 
@@ -107,12 +110,21 @@ class SB3Learner(Learner):
     """A trained SB3 policy loaded for ``mitlc eval`` and ``mitlc plot`` (it does not train:
     :func:`train` does)."""
 
-    def __init__(self, net: Any, setting: Setting) -> None:
+    def __init__(self, net: Any, setting: Setting | OpenSetting) -> None:
         self.net, self.setting = net, setting
         self.num_envs = setting.config.sb3.num_envs
-        self.encoder = Encoder(
-            setting.tables, num_automaton_states=len(setting.automaton.states)
-        )  # the layout of the wrapper's flat observation, which the network was trained on
+        # the layout of the wrapper's flat observation, which the network was trained on
+        if isinstance(setting, OpenSetting):
+            probe = make_vector(setting, 1, 0)
+            space = probe.observation_space
+            self.encoder = Encoder.of_spaces(
+                space[probe.env_key], len(setting.automaton.states),
+                setting.automaton.num_sets, probe.num_actions, scaled=False,
+            )  # fmt: skip
+        else:
+            self.encoder = Encoder(
+                setting.tables, num_automaton_states=len(setting.automaton.states)
+            )
 
     def train_step(self, env: Episodes, fraction: float) -> Step:
         """Not here: an sb3 run trains through :func:`train`."""
@@ -138,7 +150,7 @@ class SB3Learner(Learner):
         return SB3Policy(self.net, self.encoder, self.setting)
 
 
-def load_learner(directory: Path, setting: Setting) -> SB3Learner:
+def load_learner(directory: Path, setting: Setting | OpenSetting) -> SB3Learner:
     """The policy of the sb3 run in ``directory`` (its latest checkpoint), rebuilt from the
     settings without its algorithm, optimiser or replay memory."""
     configure_torch()

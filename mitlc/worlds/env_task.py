@@ -47,8 +47,9 @@ class EnvTask:
     is_pomdp: bool = False
     """Unknown for an env: the learner named in the file or on the command line decides."""
 
-    def make(self, automaton: Any) -> Any:
-        """A fresh env wrapped with the task (``automaton``: the task compiled once)."""
+    def make(self, automaton: Any, *, flatten: bool = False) -> Any:
+        """A fresh env wrapped with the task (``automaton``: the task compiled once;
+        ``flatten``: the wrapper's flat observation)."""
         from mitlc.gym import TaskWrapper
 
         return TaskWrapper(
@@ -57,6 +58,7 @@ class EnvTask:
             self.labels,
             rewards=self.rewards,
             horizon=self.horizon,
+            flatten=flatten,
         )
 
 
