@@ -246,3 +246,33 @@ def test_shaping_reads_the_automaton_state_without_a_product(tmp_path: Path) -> 
     live = setting.tables.world_state >= 0
     assert (product_phi[live] == by_state[setting.tables.automaton_state[live]]).all()
     assert (product_phi[~live] == 0.0).all() and by_state[-1] == 0.0
+
+
+def test_the_learners_read_an_async_vector_env_as_a_sync_one() -> None:
+    """``VectorTask`` over gymnasium's ``AsyncVectorEnv`` (envs in subprocesses) gives the same
+    steps as over ``SyncVectorEnv`` for the same seeds and actions."""
+    from gymnasium.vector import AutoresetMode
+
+    from mitlc.learn.envvec import VectorTask
+
+    def make() -> TaskWrapper:
+        return TaskWrapper(gym.make("FrozenLake-v1", is_slippery=True), "!hole U[0,20] goal",
+                           LAKE, horizon=25)  # fmt: skip
+
+    sync = task_vector([make() for _ in range(3)], seed=4)
+    venv = gym.vector.AsyncVectorEnv([make] * 3, autoreset_mode=AutoresetMode.SAME_STEP)
+    try:
+        async_ = VectorTask(venv, seed=4)
+        rng, ended = np.random.default_rng(0), 0
+        for _ in range(80):
+            assert (sync.valid_actions() == async_.valid_actions()).all()
+            actions = rng.integers(4, size=3)
+            a, b = sync.step(actions), async_.step(actions)
+            for field in ("reward", "terminated", "truncated", "accepting", "next_observation",
+                          "next_automaton", "next_mask", "episode_steps"):  # fmt: skip
+                assert np.array_equal(getattr(a, field), getattr(b, field)), field
+            assert np.array_equal(a.success[a.done], b.success[a.done])
+            ended += int(a.done.sum())
+        assert ended > 5
+    finally:
+        venv.close()
