@@ -119,10 +119,11 @@ def test_dqn_learns_an_env_with_a_dict_observation(tmp_path: Path) -> None:
     assert evaluate(directory, episodes=200).success_rate >= 0.9
 
 
-def test_the_recurrent_dqn_runs_on_an_env_world(tmp_path: Path) -> None:
+@pytest.mark.parametrize("text", [CHAIN, DICT_CHAIN], ids=["discrete", "dict"])
+def test_the_recurrent_dqn_runs_on_an_env_world(tmp_path: Path, text: str) -> None:
     settings = {"algo": "drqn", "episodes": 120, "drqn.num_envs": 4,
                 "drqn.warmup_sequences": 8}  # fmt: skip
-    directory = run(tmp_path, CHAIN, settings, "drqn")
+    directory = run(tmp_path, text, settings, "drqn")
     summary = json.loads((directory / "summary.json").read_text())
     assert summary["episodes"] >= 120
     assert 0.0 <= evaluate(directory, episodes=50).success_rate <= 1.0
