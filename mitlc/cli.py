@@ -32,6 +32,7 @@ from mitlc.cli_common import (
     reports_errors,
 )
 from mitlc.cli_learn import register as register_learning
+from mitlc.cli_sweep import register as register_sweeps
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import ast_to_data, atoms, parse_batch_file, to_text
@@ -243,6 +244,7 @@ def _main(
 
 register_checking(app, reports_errors)
 register_learning(app, reports_errors)
+register_sweeps(app, reports_errors)
 
 
 def main() -> None:

@@ -13,7 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from mitlc.cli_common import command_deadline, time_limit_option
-from mitlc.learn.config import ALGORITHMS, TrainConfig, resolve
+from mitlc.learn.config import ALGORITHMS, TrainConfig, config_for
 from mitlc.learn.config import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.learn.rundir import RunError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
@@ -33,25 +33,6 @@ def _overrides(
     given: dict[str, object] = {"algo": algo, "seed": seed, "episodes": episodes}
     values.update({name: v for name, v in given.items() if v is not None})
     return values
-
-
-def _config(world_file: Path, overrides: dict[str, Any]) -> tuple[TrainConfig, str]:
-    """The run's settings and the world's name."""
-    from mitlc.worlds.load import read_any_world_file
-
-    raw = read_any_world_file(world_file)
-    pomdp = getattr(raw, "observation", None) is not None
-    if hasattr(raw, "plane"):  # a continuous world: a deep learner (recurrent with a sensor)
-        pomdp = raw.plane.sensor is not None
-        if not pomdp and "algo" not in overrides and "algo" not in raw.training:
-            overrides = {**overrides, "algo": "dqn"}
-    elif hasattr(raw, "env") and "algo" not in overrides and "algo" not in raw.training:
-        from mitlc.worlds.env_task import is_open_world
-
-        if is_open_world(world_file):  # an env that is not finite: DQN reads any observation
-            overrides = {**overrides, "algo": "dqn"}
-    config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
-    return config, raw.name or world_file.stem
 
 
 class _StopFlag:
@@ -155,11 +136,11 @@ def train_command(
 
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
-        config, name = _config(
+        config, name = config_for(
             world_file, {**_flatten(saved), **_overrides(settings or [], algo, seed, episodes)}
         )
     else:
-        config, name = _config(world_file, _overrides(settings or [], algo, seed, episodes))
+        config, name = config_for(world_file, _overrides(settings or [], algo, seed, episodes))
     if resume and out is None:
         raise RunError("--resume needs --out: the run directory to continue")
     directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"

@@ -428,6 +428,33 @@ def _section_episodes(values: dict[str, Any]) -> dict[str, int]:
     return budgets
 
 
+def config_for(world_file: Any, overrides: Mapping[str, Any]) -> tuple[TrainConfig, str]:
+    """The settings of a run of the world file at ``world_file`` (a path) with ``overrides``
+    (:func:`resolve`), and the world's name. The default learner is the world's: the recurrent
+    DQN for a POMDP (a grid with an observation model, a continuous world with a sensor), DQN
+    for a world that is not finite (a continuous world, an env without a transition table),
+    else tabular Q-learning."""
+    from pathlib import Path
+
+    from mitlc.worlds.load import read_any_world_file
+
+    world_file = Path(world_file)
+    raw = read_any_world_file(world_file)
+    pomdp = getattr(raw, "observation", None) is not None
+    chosen = "algo" in overrides or "algo" in raw.training
+    if hasattr(raw, "plane"):  # a continuous world: a deep learner (recurrent with a sensor)
+        pomdp = raw.plane.sensor is not None
+        if not pomdp and not chosen:
+            overrides = {**overrides, "algo": "dqn"}
+    elif hasattr(raw, "env") and not chosen:
+        from mitlc.worlds.env_task import is_open_world
+
+        if is_open_world(world_file):  # an env that is not finite: DQN reads any observation
+            overrides = {**overrides, "algo": "dqn"}
+    config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
+    return config, raw.name or world_file.stem
+
+
 def to_data(config: TrainConfig) -> dict[str, Any]:
     """The settings as JSON-ready data (``config.json``); :func:`from_data` reads it back."""
     return dataclasses.asdict(config)
@@ -447,6 +474,7 @@ __all__ = [
     "QConfig",
     "SB3Config",
     "TrainConfig",
+    "config_for",
     "from_data",
     "resolve",
     "to_data",

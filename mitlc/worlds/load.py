@@ -117,25 +117,23 @@ def _marks(node: yaml.Node, path: FieldPath, source: _Source, active: set[int]) 
     active.discard(id(node))
 
 
-def read_yaml(path: Path, filename: str) -> _Source:
-    """Read and parse the YAML at ``path``; a :class:`WorldError` if it cannot (unreadable,
-    larger than :data:`~mitlc.limits.MAX_WORLD_BYTES`, not UTF-8, not YAML, or beyond the
-    limits of :mod:`mitlc.worlds.safe_yaml`)."""
+def read_yaml(path: Path, filename: str, kind: str = "world file") -> _Source:
+    """Read and parse the YAML at ``path`` (a ``kind``: "world file", "sweep file"); a
+    :class:`WorldError` if it cannot (unreadable, larger than
+    :data:`~mitlc.limits.MAX_WORLD_BYTES`, not UTF-8, not YAML, or beyond the limits of
+    :mod:`mitlc.worlds.safe_yaml`)."""
     try:
         data, more = read_head(path, MAX_WORLD_BYTES)
     except OSError as err:
-        raise WorldError(
-            filename, [Problem(f"cannot read the world file: {err.strerror or err}")]
-        ) from None
+        problem = Problem(f"cannot read the {kind}: {err.strerror or err}")
+        raise WorldError(filename, [problem]) from None
     if more:
-        message = (
-            f"the world file is too large: more than {MAX_WORLD_BYTES:,} bytes (mitlc's limit)"
-        )
+        message = f"the {kind} is too large: more than {MAX_WORLD_BYTES:,} bytes (mitlc's limit)"
         raise WorldError(filename, [Problem(message)])
     bad = bad_utf8(data, filename)
     if bad is not None:
         message, loc = bad
-        message += "; world files must be UTF-8 text"
+        message += f"; {kind}s must be UTF-8 text"
         raise WorldError(filename, [Problem(message, (), loc.line, loc.column)])
     text = data.decode("utf-8-sig")
     try:

@@ -1,0 +1,232 @@
+"""The report of a sweep: ``report(directory)``, rliable's statistics over seeds.
+
+Agarwal, Schwarzer, Castro, Courville and Bellemare, "Deep reinforcement learning at the edge
+of the statistical precipice", NeurIPS 2021 (the ``rliable`` library): point estimates with 95%
+stratified bootstrap confidence intervals (percentile method), over the seeds of each world
+and setting (a learner and a grid point):
+
+* the interquartile mean (IQM), the median and the mean of the scores, and the optimality gap
+  (the mean shortfall below 1), as :mod:`mitlc.sweep.stats` computes rliable's metrics;
+* the same across every world with an exact optimum, each world a task of the stratified
+  bootstrap (settings run on all of them, over the seeds they share);
+* the probability of improvement of each setting over each other, per world;
+* a performance profile (the fraction of runs with a score above tau) with bands, and learning
+  curves (the training success rate's IQM over seeds at each logged point) with bands.
+
+A score is the trial's greedy success over the exact optimum of the same event (a true
+ceiling of 1, see :mod:`mitlc.sweep.trial`), or, for a world without an exact optimum, the raw
+success rate: the tables say which. Written into the directory: ``report.md`` (Markdown
+tables), ``report.json`` (every figure), ``performance_profile.png`` and
+``learning_curves.png``. The bootstrap draws from ``seed``, so a report is reproducible.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import warnings
+from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mitlc.sweep import stats
+from mitlc.sweep.spec import SweepError
+from mitlc.sweep.trial import RESULT, TRIALS
+
+STATISTICS = ("iqm", "median", "mean", "optimality_gap")
+REPORT_MD, REPORT_JSON = "report.md", "report.json"
+PROFILE_PNG, CURVES_PNG = "performance_profile.png", "learning_curves.png"
+TAUS = np.linspace(0.0, 1.0, 101)
+
+
+@dataclass(frozen=True, slots=True)
+class Report:
+    """What :func:`report` wrote, and its figures (``data``, as in ``report.json``)."""
+
+    files: tuple[Path, ...]
+    data: dict[str, Any]
+
+
+@contextlib.contextmanager
+def quiet() -> Iterator[None]:
+    """arch's FutureWarning on rliable's ``random_state`` silenced (library code warns no one)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        yield
+
+
+def interval_estimates(
+    scores: dict[str, np.ndarray[Any, Any]], reps: int, seed: int
+) -> dict[str, dict[str, list[float]]]:
+    """For each setting's ``scores`` (runs x tasks): each statistic of :data:`STATISTICS`
+    as ``[point, low, high]``, the 95% stratified bootstrap interval (rliable)."""
+    from rliable import library as rly
+
+    with quiet():
+        points, intervals = rly.get_interval_estimates(
+            scores, stats.aggregates, reps=reps, random_state=np.random.RandomState(seed)
+        )
+    return {
+        name: {
+            stat: [
+                float(points[name][k]),
+                float(intervals[name][0][k]),
+                float(intervals[name][1][k]),
+            ]
+            for k, stat in enumerate(STATISTICS)
+        }
+        for name in scores
+    }
+
+
+def improvement(
+    x: np.ndarray[Any, Any], y: np.ndarray[Any, Any], reps: int, seed: int
+) -> list[float]:
+    """P(X > Y) of scores ``x`` over ``y`` (runs x tasks) with its 95% interval (rliable)."""
+    from rliable import library as rly
+
+    with quiet():
+        points, intervals = rly.get_interval_estimates(
+            {"pair": (x, y)},
+            stats.probability_of_improvement,
+            reps=reps,
+            random_state=np.random.RandomState(seed),
+        )
+    low, high = np.ravel(intervals["pair"])
+    return [float(points["pair"]), float(low), float(high)]
+
+
+def _results(directory: Path) -> list[dict[str, Any]]:
+    trials = directory / TRIALS
+    found = sorted(trials.glob(f"*/{RESULT}")) if trials.is_dir() else []
+    if not found:
+        raise SweepError(f"{directory}: no finished trials ({TRIALS}/*/{RESULT}): not a sweep "
+                         "directory, or no trial has finished yet")  # fmt: skip
+    results = []
+    for path in found:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+            float(data["score"])
+            str(data["world_name"]), str(data["setting"]), int(data["seed"])
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise SweepError(f"{path}: not a trial's result ({err})") from None
+        results.append(data)
+    return results
+
+
+def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
+    """Compute and write the report of the sweep in ``directory`` (see the module docstring)."""
+    from mitlc.automata.dot import write_atomically
+
+    directory = Path(directory)
+    results = _results(directory)
+    by_world: dict[str, dict[str, dict[int, dict[str, Any]]]] = defaultdict(
+        lambda: defaultdict(dict)
+    )
+    for r in results:
+        by_world[r["world_name"]][r["setting"]][int(r["seed"])] = r
+    worlds: dict[str, Any] = {}
+    for world, settings in sorted(by_world.items()):
+        scores = {name: np.array([[runs[s]["score"]] for s in sorted(runs)])
+                  for name, runs in sorted(settings.items())}  # fmt: skip
+        kinds = {r["score_kind"] for runs in settings.values() for r in runs.values()}
+        estimates = interval_estimates(scores, reps, seed)
+        pairs = {
+            f"{x} > {y}": improvement(scores[x], scores[y], reps, seed)
+            for x, y in itertools.permutations(sorted(scores), 2)
+        }
+        worlds[world] = {
+            "score_kind": " / ".join(sorted(kinds)),
+            "settings": {
+                name: {
+                    "seeds": sorted(runs),
+                    "scores": [runs[s]["score"] for s in sorted(runs)],
+                    **estimates[name],
+                }
+                for name, runs in sorted(settings.items())
+            },
+            "probability_of_improvement": pairs,
+        }
+    overall = _across(by_world, reps, seed)
+    data = {"worlds": worlds, "across_worlds": overall, "reps": reps, "seed": seed}
+    files = [directory / REPORT_JSON, directory / REPORT_MD]
+    write_atomically(files[0], (json.dumps(data, indent=2, sort_keys=True) + "\n").encode())
+    write_atomically(files[1], markdown(data).encode())
+    from mitlc.sweep.figures import learning_curves, performance_profile
+
+    figure = performance_profile(by_world, seed)
+    if figure is not None:
+        write_atomically(directory / PROFILE_PNG, figure)
+        files.append(directory / PROFILE_PNG)
+    write_atomically(directory / CURVES_PNG, learning_curves(directory, by_world, seed))
+    files.append(directory / CURVES_PNG)
+    return Report(tuple(files), data)
+
+
+def normalised(
+    by_world: dict[str, dict[str, dict[int, dict[str, Any]]]],
+) -> dict[str, np.ndarray[Any, Any]]:
+    """Each setting's scores (seeds x worlds) over the worlds with an exact optimum that it
+    ran on all of, and the seeds it has on each of them."""
+    exact = {w: s for w, s in by_world.items()
+             if all(r["optimum"] for runs in s.values() for r in runs.values())}  # fmt: skip
+    names = sorted({name for s in exact.values() for name in s})
+    scores = {}
+    for name in names:
+        on = [w for w in sorted(exact) if name in exact[w]]
+        if len(on) != len(exact) or not on:
+            continue
+        seeds = sorted(set.intersection(*(set(exact[w][name]) for w in on)))
+        if seeds:
+            scores[name] = np.array([[exact[w][name][s]["score"] for w in on] for s in seeds])
+    return scores
+
+
+def _across(
+    by_world: dict[str, dict[str, dict[int, dict[str, Any]]]], reps: int, seed: int
+) -> dict[str, Any]:
+    scores = normalised(by_world)
+    if not scores or len(by_world) < 2:
+        return {}
+    return {"worlds": sorted(w for w in by_world if all(
+        r["optimum"] for runs in by_world[w].values() for r in runs.values())),
+        "settings": interval_estimates(scores, reps, seed)}  # fmt: skip
+
+
+def _cell(values: list[float]) -> str:
+    point, low, high = values
+    return f"{point:.3f} [{low:.3f}, {high:.3f}]"
+
+
+def markdown(data: dict[str, Any]) -> str:
+    """The report's tables in Markdown."""
+    lines = ["# Sweep report", "",
+             f"95% stratified bootstrap intervals (rliable, percentile, {data['reps']:,} "
+             f"resamples, seed {data['seed']}).", ""]  # fmt: skip
+    head = "| setting | seeds | IQM | median | mean | optimality gap |"
+    for world, entry in data["worlds"].items():
+        lines += [f"## {world}", "", f"Score: {entry['score_kind']}.", "", head,
+                  "|---|---|---|---|---|---|"]  # fmt: skip
+        for name, s in entry["settings"].items():
+            cells = " | ".join(_cell(s[stat]) for stat in STATISTICS)
+            lines.append(f"| {name} | {len(s['seeds'])} | {cells} |")
+        if entry["probability_of_improvement"]:
+            lines += ["", "| probability of improvement | P(X > Y) |", "|---|---|"]
+            for pair, values in entry["probability_of_improvement"].items():
+                lines.append(f"| {pair} | {_cell(values)} |")
+        lines.append("")
+    across = data["across_worlds"]
+    if across:
+        lines += ["## Across worlds", "",
+                  f"Success / optimum, each of {', '.join(across['worlds'])} a task.", "",
+                  "| setting | IQM | median | mean | optimality gap |",
+                  "|---|---|---|---|---|"]  # fmt: skip
+        for name, s in across["settings"].items():
+            lines.append(f"| {name} | " + " | ".join(_cell(s[k]) for k in STATISTICS) + " |")
+        lines.append("")
+    return "\n".join(lines)
