@@ -36,13 +36,13 @@ def performance_profile(
     exceeds tau, per setting, with its band; ``None`` without such worlds."""
     from rliable import library as rly
 
-    from mitlc.sweep.report import TAUS, normalised
+    from mitlc.sweep.report import TAUS, normalised, quiet
 
     scores = normalised(by_world)
     if not scores:
         return None
-    np.random.seed(seed)  # create_performance_profile draws from numpy's global generator
-    profiles, bands = rly.create_performance_profile(scores, TAUS)
+    with quiet(seed):  # create_performance_profile draws from numpy's global generator
+        profiles, bands = rly.create_performance_profile(scores, TAUS)
     figure = Figure(figsize=(7.0, 4.2), dpi=100, layout="constrained")
     axes = figure.subplots()
     for name in sorted(profiles):
@@ -98,7 +98,7 @@ def learning_curves(
             x = np.median(np.array([np.take(c[0], keep) for c in curves]), axis=0)
             y = np.array([np.take(c[1], keep) for c in curves])[:, None, :]  # seeds x 1 x points
 
-            with quiet():
+            with quiet(seed):
                 middle, band = rly.get_interval_estimates(
                     {name: y}, iqm_per_point, reps=CURVE_REPS,
                     random_state=np.random.RandomState(seed),

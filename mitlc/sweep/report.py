@@ -53,11 +53,20 @@ class Report:
 
 
 @contextlib.contextmanager
-def quiet() -> Iterator[None]:
-    """arch's FutureWarning on rliable's ``random_state`` silenced (library code warns no one)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        yield
+def quiet(seed: int | None = None) -> Iterator[None]:
+    """arch's FutureWarning on rliable's ``random_state`` silenced (library code warns no one)
+    and, with ``seed``, numpy's global generator seeded meanwhile and then put back: rliable's
+    stratified bootstrap draws its resamples from it (``np.random.choice``), whatever
+    ``random_state`` says."""
+    state = np.random.get_state()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            if seed is not None:
+                np.random.seed(seed)
+            yield
+    finally:
+        np.random.set_state(state)
 
 
 def interval_estimates(
@@ -67,7 +76,7 @@ def interval_estimates(
     as ``[point, low, high]``, the 95% stratified bootstrap interval (rliable)."""
     from rliable import library as rly
 
-    with quiet():
+    with quiet(seed):
         points, intervals = rly.get_interval_estimates(
             scores, stats.aggregates, reps=reps, random_state=np.random.RandomState(seed)
         )
@@ -90,7 +99,7 @@ def improvement(
     """P(X > Y) of scores ``x`` over ``y`` (runs x tasks) with its 95% interval (rliable)."""
     from rliable import library as rly
 
-    with quiet():
+    with quiet(seed):
         points, intervals = rly.get_interval_estimates(
             {"pair": (x, y)},
             stats.probability_of_improvement,
