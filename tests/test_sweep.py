@@ -278,3 +278,53 @@ def test_an_interrupted_sweep_resumes_and_skips_finished_trials(tmp_path: Path) 
         result = json.loads((directory / RESULT).read_text())
         for key in ("success_rate", "exact", "train_episodes", "train_steps"):
             assert alone[key] == result[key], key
+
+
+def test_the_report_uses_the_raw_success_where_no_optimum_exists(tmp_path: Path) -> None:
+    """A world without an exact optimum is reported on its raw success rate and left out of
+    the across-worlds statistics; the tables and figures are written."""
+    from mitlc.sweep.report import report
+
+    rng = np.random.default_rng(0)
+    for world, optimum in (("grid", 0.9), ("plane", None), ("lake", 0.7)):
+        for setting in ("a", "b"):
+            for seed in range(4):
+                success = float(rng.random())
+                trial_id = f"{world}--{setting}--s{seed}"
+                folder = tmp_path / "trials" / trial_id
+                folder.mkdir(parents=True)
+                (folder / "metrics.jsonl").write_text("".join(
+                    json.dumps({"episodes": 100 * k, "success_rate": success * k / 5}) + "\n"
+                    for k in range(1, 6)))  # fmt: skip
+                (folder / RESULT).write_text(json.dumps({
+                    "world_name": world, "setting": setting, "seed": seed, "trial_id": trial_id,
+                    "optimum": optimum, "success_rate": success,
+                    "score": success / optimum if optimum else success,
+                    "score_kind": "success / optimum" if optimum else
+                    "success rate (no exact optimum)",
+                }))  # fmt: skip
+    written = report(tmp_path, reps=200)
+    data = written.data
+    assert data["worlds"]["plane"]["score_kind"] == "success rate (no exact optimum)"
+    assert data["worlds"]["grid"]["score_kind"] == "success / optimum"
+    assert data["across_worlds"]["worlds"] == ["grid", "lake"]
+    scores = data["worlds"]["lake"]["settings"]["a"]["scores"]
+    assert data["worlds"]["lake"]["settings"]["a"]["mean"][0] == pytest.approx(np.mean(scores))
+    markdown = (tmp_path / "report.md").read_text()
+    assert "Score: success rate (no exact optimum)." in markdown
+    assert {p.name for p in written.files} == {"report.json", "report.md",
+                                               "performance_profile.png", "learning_curves.png"}
+
+
+def test_report_of_a_directory_without_finished_trials_is_one_line(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    done = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert done.exit_code == 1 and "no finished trials" in done.output
+    broken = tmp_path / "trials" / "x"
+    broken.mkdir(parents=True)
+    (broken / RESULT).write_text("{not json")
+    done = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert done.exit_code == 1 and f"{broken / RESULT}: not a trial's result" in done.output
