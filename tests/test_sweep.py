@@ -56,6 +56,12 @@ def test_a_sweep_file_becomes_one_trial_per_world_learner_point_and_seed(tmp_pat
     assert len({t.trial_id for t in sweep.trials}) == len(sweep.trials)
 
 
+def test_the_shipped_sweep_file_loads() -> None:
+    sweep = load_sweep(ROOT / "specs" / "sweeps" / "case1-learners.yaml")
+    assert len(sweep.trials) == 2 * 2 * 10
+    assert {t.world_name for t in sweep.trials} == {"case1-5x5", "frozenlake-4x4"}
+
+
 BAD = {
     "unknown world": ("worlds: [nowhere.yaml]", "worlds[0]: unknown world: no file 'nowhere.yaml'"),
     "unknown setting path": (
