@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded bench-task lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-sweep lint golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -70,6 +70,17 @@ bench-throughput: $(STAMP)
 # F[0,1000] G[0,1000] a is stopped at the default limits (about a minute and a half).
 bench-bounded: $(STAMP)
 	$(BIN)/python bench/bounded_bench.py
+
+# Learners side by side (issue 13): mitlc's DQN beside SB3's DQN and PPO at the same env steps,
+# on case 1 and on the continuous case 1 (about 15 minutes).
+bench-sb3: $(STAMP)
+	$(BIN)/python bench/sb3_bench.py --episodes 9000 --set dqn.crm=true --set dqn.target_update=50
+	$(BIN)/python bench/sb3_bench.py --world specs/continuous/case1.yaml --episodes 10000 --set dqn.target_update=50
+
+# Sweeps at scale (issue 14): 20 seeds of case 1 and 10 of case 3 one after another, on Ray on
+# this machine, and on a two-node Ray cluster started here (about 20 minutes).
+bench-sweep: $(STAMP)
+	$(BIN)/python bench/sweep_bench.py
 
 # Rewrite golden files from the current output; read `git diff tests/golden` before committing.
 golden: $(STAMP)
