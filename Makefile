@@ -75,7 +75,7 @@ bench-bounded: $(STAMP)
 # on case 1 and on the continuous case 1 (about 15 minutes).
 bench-sb3: $(STAMP)
 	$(BIN)/python bench/sb3_bench.py --episodes 9000 --set dqn.crm=true --set dqn.target_update=50
-	$(BIN)/python bench/sb3_bench.py --world specs/continuous/case1.yaml --episodes 10000 --set dqn.target_update=50
+	$(BIN)/python bench/sb3_bench.py --world specs/continuous/case1.yaml --episodes 10000 --set dqn.num_envs=32 --set dqn.target_update=25
 
 # Sweeps at scale (issue 14): 20 seeds of case 1 and 10 of case 3 one after another, on Ray on
 # this machine, and on a two-node Ray cluster started here (about 20 minutes).
