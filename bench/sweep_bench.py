@@ -29,6 +29,27 @@ from mitlc.sweep.spec import load_sweep  # noqa: E402
 from mitlc.sweep.trial import run_trial  # noqa: E402
 
 KEYS = ("success_rate", "exact", "train_episodes", "train_steps")
+BUSY = "s = 0\nfor i in range(30_000_000):\n    s += i\n"
+
+
+def ceiling(cores: int, tries: int = 5) -> float:
+    """The machine's own parallel speed-up: ``cores`` plain CPU-bound Python processes at
+    once beside one after another, the median of ``tries`` interleaved pairs (a shared or
+    throttled host gives less than ``cores``)."""
+    import statistics
+    import subprocess
+
+    ratios = []
+    for _ in range(tries):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", BUSY], check=True)
+        one = time.perf_counter() - start
+        start = time.perf_counter()
+        running = [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(cores)]
+        for process in running:
+            process.wait()
+        ratios.append(cores * one / (time.perf_counter() - start))
+    return statistics.median(ratios)
 
 
 def sweep_file(folder: Path, seeds_q: int, seeds_drqn: int, drqn_episodes: int) -> Path:
@@ -71,10 +92,16 @@ def main() -> None:
     parser.add_argument("--seeds-drqn", type=int, default=10)
     parser.add_argument("--drqn-episodes", type=int, default=40_000)
     parser.add_argument("--skip-cluster", action="store_true")
+    parser.add_argument("--ceiling-only", action="store_true", help="only the machine's own")
     args = parser.parse_args()
     import os
 
     cores = os.cpu_count() or 1
+    limit = ceiling(cores)
+    print(f"this machine: {cores} plain CPU-bound processes at once run {limit:.2f}x as fast as "
+          "one after another (median of 5 tries; the ceiling of any parallel speed-up here)\n")
+    if args.ceiling_only:
+        return
     with tempfile.TemporaryDirectory() as scratch:
         base = sweep_file(Path(scratch), args.seeds_q, args.seeds_drqn, args.drqn_episodes)
         trials = [t for n in ("q.yaml", "drqn.yaml") for t in load_sweep(base / n).trials]
