@@ -272,7 +272,8 @@ def test_an_interrupted_sweep_resumes_and_skips_finished_trials(tmp_path: Path) 
     done_before = {d.name: (d / RESULT).stat().st_mtime_ns for d in (first, second)
                    if (d / RESULT).is_file()}  # fmt: skip
     assert len(done_before) < 2
-    subprocess.run(["ray", "stop", "--force"], capture_output=True, check=False)
+    ray_cli = Path(sys.executable).with_name("ray")  # the venv's, not necessarily on PATH
+    subprocess.run([str(ray_cli), "stop", "--force"], capture_output=True, check=False)
     resumed = mitlc("sweep", str(sweep_file), "--out", str(out), "--resume", "--reps", "100")
     stdout, stderr = resumed.communicate(timeout=600)
     assert resumed.returncode == 0, stderr[-3000:]
