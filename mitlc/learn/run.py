@@ -123,6 +123,20 @@ def prepare(
     return Setting(world_path, world, automaton, product, tables(product, world), config)
 
 
+def prepare_world(
+    world_path: str | Path,
+    config: TrainConfig,
+    spec: str | None = None,
+    *,
+    deadline: Deadline | None = None,
+) -> Setting | OpenSetting:
+    """The run's setting: a finite world's product (:func:`prepare`), or for a world that is
+    not finite its wrapped envs' (:func:`mitlc.learn.plane_run.prepare_open`)."""
+    if is_open_world(world_path):
+        return prepare_open(Path(world_path), config, spec, deadline=deadline)
+    return prepare(Path(world_path), config, spec, deadline=deadline)
+
+
 def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     """The learner ``setting.config.algo`` names (the deep ones import torch)."""
     config = setting.config
@@ -364,11 +378,7 @@ def train(
             should_stop=should_stop, deadline=deadline,
         )  # fmt: skip
     directory = Path(out)
-    setting: Setting | OpenSetting
-    if is_open_world(world_path):  # not finite: mitlc.learn.plane_run
-        setting = prepare_open(Path(world_path), config, spec, deadline=deadline)
-    else:
-        setting = prepare(Path(world_path), config, spec, deadline=deadline)
+    setting = prepare_world(world_path, config, spec, deadline=deadline)
     if resume:
         read_config(directory)  # a run directory at all?
     else:

@@ -51,7 +51,7 @@ from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.nets import configure_torch
-from mitlc.learn.plane_run import OpenSetting, open_env, prepare_open
+from mitlc.learn.plane_run import OpenSetting, open_env
 from mitlc.learn.run import (
     CONFIG,
     METRICS,
@@ -66,14 +66,13 @@ from mitlc.learn.run import (
     _Tally,
     _truncate_metrics,
     _write_json,
-    prepare,
+    prepare_world,
     read_config,
 )
 from mitlc.learn.rundir import locked
 from mitlc.learn.state import one_line, restore
 from mitlc.limits import Deadline
 from mitlc.product.env import ProductEnv
-from mitlc.worlds.env_task import is_open_world
 
 Vectors = npt.NDArray[np.float32]
 
@@ -187,11 +186,7 @@ def train(
         raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
     algorithm(config.algo)  # SB3 installed?
     directory = Path(out)
-    setting: Setting | OpenSetting = (
-        prepare_open(Path(world_path), config, spec, deadline=deadline)
-        if is_open_world(world_path)
-        else prepare(Path(world_path), config, spec, deadline=deadline)
-    )
+    setting = prepare_world(world_path, config, spec, deadline=deadline)
     if resume:
         read_config(directory)
     else:
