@@ -58,7 +58,6 @@ class ObservedQLearner(QLearner):
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy)
         step = env.step(actions)
-        assert step.next_automaton is not None and step.next_valid is not None
         after = np.asarray(step.next_observation, dtype=np.int64) * self.num_q
         after = after + step.next_automaton
         batch = Batch(mask, state, actions, step.reward, step.accepting, step.terminated,
