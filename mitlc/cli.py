@@ -14,12 +14,8 @@ from typing import Annotated
 import typer
 
 from mitlc import __version__
-from mitlc.automata import DEFAULT_MAX_STATES, compile_formula
-from mitlc.automata.artifact import from_data, to_json
-from mitlc.automata.dot import render, to_dot, write_atomically
-from mitlc.automata.hoa import to_hoa, to_hoa_stream
-from mitlc.automata.runs import run_states
 from mitlc.cli_check import register as register_checking
+from mitlc.cli_coercion import install as install_plain_coercion
 from mitlc.cli_common import (
     ExprOpt,
     MaxStatesOpt,
@@ -34,10 +30,15 @@ from mitlc.cli_common import (
 from mitlc.cli_learn import register as register_learning
 from mitlc.cli_sweep import register as register_sweeps
 from mitlc.errors import MitlcError
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+from mitlc.limits import DEFAULT_MAX_STATES, DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import ast_to_data, atoms, parse_batch_file, to_text
 from mitlc.syntax.tree import tree_text
-from mitlc.traces import TraceError, read_trace, read_trace_text, trace_columns
+
+# Each command imports what it needs when it runs (the automata, traces, worlds, learners), and
+# typer coerces plain option values without pydantic, so that `mitlc fmt` starts without them:
+# the start-up is measured by bench/startup_bench.py, what it imports checked by
+# tests/test_startup.py.
+install_plain_coercion()
 
 app = typer.Typer(
     name="mitlc",
@@ -89,6 +90,8 @@ def _emit(text: str, output: Path | None) -> None:
     if output is None:
         typer.echo(text, nl=False)
     else:
+        from mitlc.automata.dot import write_atomically
+
         write_atomically(output, text.encode("utf-8"))
 
 
@@ -109,6 +112,11 @@ def compile_command(
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Compile a formula into its timed LDGBA (JSON artifact, DOT drawing or HOA)."""
+    from mitlc.automata import compile_formula
+    from mitlc.automata.artifact import to_json
+    from mitlc.automata.dot import to_dot
+    from mitlc.automata.hoa import to_hoa
+
     deadline = command_deadline(time_limit, "compile")
     if batch is not None:
         if spec is not None or expr is not None:
@@ -126,6 +134,10 @@ def compile_command(
 
 
 def _compile_batch(path: Path, fmt: Format, max_states: int, deadline: Deadline) -> str:
+    from mitlc.automata import compile_formula
+    from mitlc.automata.artifact import to_json
+    from mitlc.automata.hoa import to_hoa_stream
+
     compiled = [
         compile_formula(f, max_states=max_states, deadline=deadline)
         for f in parse_batch_file(path)
@@ -152,6 +164,10 @@ def render_command(
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Draw the timed LDGBA of a formula or of a compiled artifact."""
+    from mitlc.automata import compile_formula
+    from mitlc.automata.artifact import from_data
+    from mitlc.automata.dot import render, to_dot
+
     if source is not None and source.endswith(".json"):
         try:
             data = json.loads(Path(source).read_bytes())
@@ -187,6 +203,10 @@ def monitor(
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Print the three-valued verdict (satisfied, violated, pending) after each step of a trace."""
+    from mitlc.automata import compile_formula
+    from mitlc.automata.runs import run_states
+    from mitlc.traces import TraceError, read_trace, read_trace_text, trace_columns
+
     formula = load_formula(spec, None)
     text = read_trace_text(trace)
     columns = trace_columns(trace, text)

@@ -8,8 +8,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from mitlc.automata import DEFAULT_MAX_STATES, LazyAutomaton
-from mitlc.automata.dot import write_atomically
 from mitlc.cli_common import (
     MaxStatesOpt,
     TimeLimitOpt,
@@ -18,7 +16,13 @@ from mitlc.cli_common import (
     json_dumps,
     load_formula,
 )
-from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.limits import (
+    DEFAULT_MAX_PRODUCT_STATES,
+    DEFAULT_MAX_STATES,
+    DEFAULT_TIME_LIMIT,
+    Deadline,
+    LimitError,
+)
 from mitlc.syntax import parse, to_text
 
 if TYPE_CHECKING:
@@ -66,6 +70,8 @@ def check_command(
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
+    from mitlc.automata import LazyAutomaton
+    from mitlc.automata.dot import write_atomically
     from mitlc.check import check
     from mitlc.check.drn import to_drn
     from mitlc.worlds import load_world

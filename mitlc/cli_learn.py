@@ -8,15 +8,17 @@ import signal
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from mitlc.cli_common import command_deadline, time_limit_option
-from mitlc.learn.config import ALGORITHMS, TrainConfig, config_for
-from mitlc.learn.config import MAX_EVAL_EPISODES as MAX_EVAL
-from mitlc.learn.rundir import RunError
+from mitlc.learn.names import ALGORITHMS
+from mitlc.learn.names import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
+
+if TYPE_CHECKING:
+    from mitlc.learn.config import TrainConfig
 
 RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mitlc train).")]
 
@@ -24,6 +26,8 @@ RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mi
 def _overrides(
     pairs: list[str], algo: str | None, seed: int | None, episodes: int | None
 ) -> dict[str, Any]:
+    from mitlc.learn.rundir import RunError
+
     values: dict[str, Any] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
@@ -132,7 +136,9 @@ def train_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
+    from mitlc.learn.config import config_for
     from mitlc.learn.run import CONFIG, read_config, train
+    from mitlc.learn.rundir import RunError
 
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
@@ -284,6 +290,8 @@ def eval_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
+    from mitlc.learn.rundir import RunError
+
     if episodes is not None and episodes <= 0:
         raise RunError("--episodes must be positive")
     if episodes is not None and episodes > MAX_EVAL:

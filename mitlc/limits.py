@@ -22,6 +22,10 @@ A minute: the paper's checks take under a second, the whole check of a 100x100 g
 20 s and ``F[0,100000] a`` compiles in a few seconds, while a runaway translation (``F[0,1000]
 G[0,1000] a``, about a million states of hundreds of atoms each) holds 3 GB after a minute."""
 
+DEFAULT_MAX_STATES = 1_000_000
+"""The most digital states a translation builds before it stops (``--max-states``; the
+``max_states`` of :func:`mitlc.automata.compile_formula`)."""
+
 DEFAULT_MAX_PRODUCT_STATES = 8_000_000
 """The largest product (its bound ``S * Q`` on the states) built by default
 (``--max-product-states``): a product of a million reachable states takes about 2 GB to check,

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal, TypeVar
 
 from mitlc.errors import MitlcError
+from mitlc.learn.names import ALGORITHMS, MAX_EVAL_EPISODES
 
-ALGORITHMS = ("q", "dqn", "drqn", "sb3-ppo", "sb3-dqn", "sb3-maskable-ppo", "sb3-recurrent-ppo")
 Algorithm = Literal[
     "q", "dqn", "drqn", "sb3-ppo", "sb3-dqn", "sb3-maskable-ppo", "sb3-recurrent-ppo"
 ]
@@ -332,9 +332,6 @@ _POSITIVE = {
     "eval_episodes",
 }
 
-
-MAX_EVAL_EPISODES = 1_000_000
-"""The most episodes an evaluation runs (all at once, so memory grows with them)."""
 
 _AT_MOST = {"layers": 100, "eval_episodes": MAX_EVAL_EPISODES}
 """Bounds where a bigger value would only make the learner's construction loop for ages, or

@@ -141,7 +141,8 @@ def _tune(
                 "trial": tune.grid_search([t.to_data() for t in todo]),
                 "root": str(out),
             },
-            tune_config=tune.TuneConfig(trial_dirname_creator=_dirname),
+            # One worker process runs trial after trial (it imports mitlc and torch once).
+            tune_config=tune.TuneConfig(trial_dirname_creator=_dirname, reuse_actors=True),
             run_config=tune.RunConfig(
                 name=sweep.name,
                 storage_path=str(out / "ray"),
