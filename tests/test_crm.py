@@ -47,7 +47,7 @@ def two_state_world() -> World:
 
 
 def rising_edges() -> DigitalAutomaton:
-    return DigitalAutomaton(
+    return DigitalAutomaton.from_table(
         source="<rising edges of a>",
         formula="<rising edges of a>",
         propositions=("a",),

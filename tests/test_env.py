@@ -172,12 +172,12 @@ def one_state(num_sets: int, marks: tuple[int, ...], epsilon: bool = False) -> D
     accepting state (a leads to the violated sink 2)."""
     pending = DigitalState("x", "initial", "pending")
     if not epsilon:
-        return DigitalAutomaton(
+        return DigitalAutomaton.from_table(
             "x", "x", ("a", "b"), (pending,), 0, ((0,) * 4,), (marks,), num_sets
         )
     accepting = DigitalState("G !a", "accepting", "pending")
     sink = DigitalState("false", "initial", "violated")
-    return DigitalAutomaton(
+    return DigitalAutomaton.from_table(
         "F G !a", "F G !a", ("a", "b"), (pending, accepting, sink), 0,
         ((0, 0, 0, 0), (1, 2, 1, 2), (2, 2, 2, 2)), ((0,) * 4, (1, 0, 1, 0), (0,) * 4), 1,
         ((0, 1),),

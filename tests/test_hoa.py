@@ -27,7 +27,7 @@ def _state(obligation: str, component: str = "accepting", verdict: str = "pendin
 
 def gf_a() -> DigitalAutomaton:
     """``G F a``: one state, the ``a`` edge in set 0."""
-    return DigitalAutomaton(
+    return DigitalAutomaton.from_table(
         "G F a", "G F a", ("a",), (_state("G F a"),), 0, ((0, 0),), ((0, 1),), 1
     )
 
@@ -41,13 +41,17 @@ def fg_a() -> DigitalAutomaton:
     )
     delta = ((0, 0), (2, 1), (2, 2))
     marks = ((0, 0), (0, 1), (0, 0))
-    return DigitalAutomaton("F G a", "F G a", ("a",), states, 0, delta, marks, 1, ((0, 1),))
+    return DigitalAutomaton.from_table(
+        "F G a", "F G a", ("a",), states, 0, delta, marks, 1, ((0, 1),)
+    )
 
 
 def g_a() -> DigitalAutomaton:
     """``G a`` with zero acceptance sets: ``!a`` leads to the violated sink 1."""
     states = (_state("G a"), _state("false", verdict="violated"))
-    return DigitalAutomaton("G a", "G a", ("a",), states, 0, ((1, 0), (1, 1)), ((0, 0), (0, 0)), 0)
+    return DigitalAutomaton.from_table(
+        "G a", "G a", ("a",), states, 0, ((1, 0), (1, 1)), ((0, 0), (0, 0)), 0
+    )
 
 
 def f_g_safe() -> DigitalAutomaton:
@@ -56,12 +60,12 @@ def f_g_safe() -> DigitalAutomaton:
     states = (_state("true", "initial"), _state("G a"), _state("false", verdict="violated"))
     delta = ((0, 0), (2, 1), (2, 2))
     marks = ((0, 0), (0, 0), (0, 0))
-    return DigitalAutomaton("x", "x", ("a",), states, 0, delta, marks, 0, ((0, 1),))
+    return DigitalAutomaton.from_table("x", "x", ("a",), states, 0, delta, marks, 0, ((0, 1),))
 
 
 def gf_a_gf_b() -> DigitalAutomaton:
     """``G F a & G F b``: one state; letter bit 0 (a) is set 0, bit 1 (b) is set 1."""
-    return DigitalAutomaton(
+    return DigitalAutomaton.from_table(
         "G F a & G F b",
         "G F a & G F b",
         ("a", "b"),

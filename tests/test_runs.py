@@ -29,7 +29,7 @@ def automaton(
     epsilon: tuple[tuple[int, int], ...] = (),
     initial: int = 0,
 ) -> DigitalAutomaton:
-    return DigitalAutomaton(
+    return DigitalAutomaton.from_table(
         source=formula,
         formula=formula,
         propositions=propositions,

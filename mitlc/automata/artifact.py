@@ -9,11 +9,11 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from mitlc.automata.labels import label_text
+from mitlc.automata.labels import Letters, submasks
 from mitlc.automata.tldgba import Edge, Jump, Location, Tldgba
 from mitlc.errors import MitlcError
 from mitlc.semantics import holds_finite
-from mitlc.syntax import parse
+from mitlc.syntax import Formula, atoms, parse, to_text
 
 FORMAT = "mitlc.tldgba/1"
 
@@ -48,7 +48,7 @@ def to_data(automaton: Tldgba) -> dict[str, Any]:
             {
                 "source": e.source,
                 "target": e.target,
-                "label": label_text(e.letters, automaton.propositions),
+                "label": e.label.text(automaton.propositions),
                 "guard": {names[c]: [lo, hi] for c, lo, hi in e.guard},
                 "reset": [names[c] for c in e.reset],
                 "acc": list(e.acc),
@@ -121,15 +121,24 @@ def _location(data: dict[str, Any], clocks: tuple[int, ...]) -> Location:
     )
 
 
+def label_letters(label: Formula, propositions: tuple[str, ...]) -> Letters:
+    """The letters satisfying a propositional ``label``: the valuations of the propositions it
+    mentions (``2^k`` for ``k`` of them, whatever the alphabet) that make it true."""
+    index = {p: i for i, p in enumerate(propositions)}
+    unknown = [p for p in atoms(label) if p not in index]
+    if unknown:
+        raise ValueError(f"label {to_text(label)!r} names {unknown[0]!r}, not a proposition")
+    mask = sum(1 << index[p] for p in atoms(label))
+    members = [
+        sub
+        for sub in submasks(mask)
+        if holds_finite(label, [frozenset(p for p, i in index.items() if sub >> i & 1)])
+    ]
+    return Letters.of(mask, members)
+
+
 def _edge(data: dict[str, Any], propositions: tuple[str, ...], clock: dict[str, int]) -> Edge:
-    label = parse(data["label"], "<label>")
-    letters = frozenset(
-        letter
-        for letter in range(1 << len(propositions))
-        if holds_finite(
-            label, [frozenset(p for i, p in enumerate(propositions) if letter >> i & 1)]
-        )
-    )
+    letters = label_letters(parse(data["label"], "<label>"), propositions)
     guard = tuple(sorted((clock[n], int(lo), int(hi)) for n, (lo, hi) in data["guard"].items()))
     return Edge(
         int(data["source"]),

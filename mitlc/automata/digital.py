@@ -1,11 +1,16 @@
 """The digital automaton: the explicit, discrete-time ground truth of a compiled formula.
 
-A transition-based generalized Büchi automaton over letters (sets of propositions), given as an
-explicit table: ``delta[s][letter]`` is the successor of state ``s`` on the letter whose index is
-``sum(1 << i for each true propositions[i])``, and ``marks[s][letter]`` is the bit mask of the
-acceptance sets that transition belongs to. The automaton is deterministic and complete on
-letters; its only other choice is an epsilon jump ``(source, target)``, which reads no letter and
-goes from the initial to the accepting component (a limit-deterministic automaton, LDGBA).
+A transition-based generalized Büchi automaton over letters (sets of propositions; a letter's
+index is ``sum(1 << i for each true propositions[i])``), with symbolic letters: each state has a
+:class:`Row`, the propositions it reads now and one transition per valuation of those (the
+classes of letters the state tells apart), so a state that reads two of twenty propositions has
+four transitions, not a million. ``successor(s, letter)`` is the target of state ``s`` on
+``letter`` and the bit mask of the acceptance sets that transition belongs to; ``edges(s)``
+groups the classes by transition, each with its letters as a :class:`Letters` (a Boolean
+label). The explicit per-letter table (``delta``, ``marks``) is a view made on demand, for
+small alphabets. The automaton is deterministic and complete on letters; its only other choice
+is an epsilon jump ``(source, target)``, which reads no letter and goes from the initial to the
+accepting component (a limit-deterministic automaton, LDGBA).
 
 A run is accepting iff it takes, infinitely often, a transition of every acceptance set; with
 zero sets, iff it never enters a violated state.
@@ -13,8 +18,12 @@ zero sets, iff it never enters a violated state.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal, TypeAlias
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal, TypeAlias
+
+from mitlc.automata.bdd import LEAF, Diagrams
+from mitlc.automata.labels import Letters
 
 Component: TypeAlias = Literal["initial", "accepting"]
 Verdict: TypeAlias = Literal["satisfied", "violated", "pending"]
@@ -34,6 +43,121 @@ class DigitalState:
 
 
 @dataclass(frozen=True, slots=True)
+class Row:
+    """The transitions of one state: a reduced decision diagram over the propositions it reads
+    (:mod:`mitlc.automata.bdd`). ``tests[i]`` is ``(proposition, low, high)``; a child or
+    ``root`` ``c >= 0`` is ``tests[c]`` and ``c < 0`` is transition ``~c``: ``(targets[~c],
+    marks[~c])``. Transitions are listed by their least letter, each once."""
+
+    root: int
+    tests: tuple[tuple[int, int, int], ...]
+    targets: tuple[int, ...]
+    marks: tuple[int, ...]
+    reads: int = field(init=False, compare=False)
+    """The propositions the state reads (those its diagram tests)."""
+
+    def __post_init__(self) -> None:
+        reads = 0
+        for prop, _, _ in self.tests:
+            reads |= 1 << prop
+        object.__setattr__(self, "reads", reads)
+
+    @staticmethod
+    def constant(target: int, marks: int = 0) -> Row:
+        """A row that reads nothing: the same transition on every letter."""
+        return Row(~0, (), (target,), (marks,))
+
+    @staticmethod
+    def export(diagrams: Diagrams, node: int, relabel: Callable[[Any], tuple[int, int]]) -> Row:
+        """The row of ``node`` of ``diagrams``, its terminals relabelled ``(target, marks)``
+        (terminals relabelled alike are merged, and the diagram kept reduced)."""
+        var, low, high = diagrams.var, diagrams.low, diagrams.high
+        outcomes: dict[tuple[int, int], int] = {}
+        tests: list[tuple[int, int, int]] = []
+        inner: dict[tuple[int, int, int], int] = {}
+        memo: dict[int, int] = {}
+
+        def go(f: int) -> int:  # low branch first: transitions by least letter
+            found = memo.get(f)
+            if found is not None:
+                return found
+            if var[f] == LEAF:
+                found = ~outcomes.setdefault(relabel(diagrams.values[f]), len(outcomes))
+            else:
+                lo, hi = go(low[f]), go(high[f])
+                key = (var[f], lo, hi)
+                found = lo if lo == hi else inner.get(key)
+                if found is None:
+                    found = inner[key] = len(tests)
+                    tests.append(key)
+            memo[f] = found
+            return found
+
+        root = go(node)
+        return Row(root, tuple(tests), tuple(t for t, _ in outcomes), tuple(m for _, m in outcomes))
+
+    def into(self, diagrams: Diagrams, value: Callable[[int], Any]) -> int:
+        """This row as a node of ``diagrams``, transition ``k`` a terminal ``value(k)``."""
+        made: dict[int, int] = {}
+
+        def go(c: int) -> int:
+            found = made.get(c)
+            if found is None:
+                if c < 0:
+                    found = diagrams.leaf(value(~c))
+                else:
+                    prop, low, high = self.tests[c]
+                    found = diagrams.node(prop, go(low), go(high))
+                made[c] = found
+            return found
+
+        return go(self.root)
+
+    def successor(self, letter: int) -> tuple[int, int]:
+        """``(target, marks)`` on ``letter``."""
+        c, tests = self.root, self.tests
+        while c >= 0:
+            prop, low, high = tests[c]
+            c = high if letter >> prop & 1 else low
+        return self.targets[~c], self.marks[~c]
+
+    def paths(self) -> list[tuple[int, int, int]]:
+        """Every path ``(care, value, transition)``: disjoint cubes covering every letter."""
+        out, stack = [], [(self.root, 0, 0)]
+        while stack:
+            c, care, value = stack.pop()
+            if c < 0:
+                out.append((care, value, ~c))
+                continue
+            prop, low, high = self.tests[c]
+            bit = 1 << prop
+            stack += [(high, care | bit, value | bit), (low, care | bit, value)]
+        return out
+
+    def edges(self) -> list[tuple[int, int, Letters]]:
+        """``(target, marks, letters)`` per transition, by their least letter."""
+        cubes: list[list[tuple[int, int]]] = [[] for _ in self.targets]
+        for care, value, k in self.paths():
+            cubes[k].append((care, value))
+        return [
+            (t, m, Letters.of_cubes(c))
+            for t, m, c in zip(self.targets, self.marks, cubes, strict=True)
+        ]
+
+
+def _table_row(targets: Sequence[int], marks: Sequence[int], num_props: int) -> Row:
+    """The row of one state of an explicit table (``targets[letter]``, ``marks[letter]``)."""
+    diagrams = Diagrams()
+
+    def build(var: int, base: int) -> int:
+        if var < 0:
+            return diagrams.leaf((targets[base], marks[base]))
+        return diagrams.node(var, build(var - 1, base), build(var - 1, base | 1 << var))
+
+    return Row.export(diagrams, build(num_props - 1, 0), lambda outcome: outcome)
+
+
+@dataclass(frozen=True, slots=True)
 class DigitalAutomaton:
     """An explicit LDGBA with transition-based generalized Büchi acceptance (see module doc)."""
 
@@ -44,18 +168,65 @@ class DigitalAutomaton:
     propositions: tuple[str, ...]
     states: tuple[DigitalState, ...]
     initial: int
-    delta: tuple[tuple[int, ...], ...]
-    """``delta[s][letter]``: the successor of ``s`` on ``letter``."""
-    marks: tuple[tuple[int, ...], ...]
-    """``marks[s][letter]``: bit ``k`` set iff that transition is in acceptance set ``k``."""
+    rows: tuple[Row, ...]
+    """``rows[s]``: the transitions of ``s``."""
     num_sets: int
     epsilon: tuple[tuple[int, int], ...] = ()
     """Epsilon jumps ``(source, target)``, sorted, from the initial to the accepting component."""
+    _table: dict[str, tuple[tuple[tuple[int, ...], ...], ...]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
+
+    @staticmethod
+    def from_table(
+        source: str,
+        formula: str,
+        propositions: tuple[str, ...],
+        states: tuple[DigitalState, ...],
+        initial: int,
+        delta: Sequence[Sequence[int]],
+        marks: Sequence[Sequence[int]],
+        num_sets: int,
+        epsilon: tuple[tuple[int, int], ...] = (),
+    ) -> DigitalAutomaton:
+        """The automaton of an explicit table (``delta[s][letter]``, ``marks[s][letter]``):
+        every state reads every proposition."""
+        n = len(propositions)
+        rows = [_table_row(d, m, n) for d, m in zip(delta, marks, strict=True)]
+        return DigitalAutomaton(
+            source, formula, propositions, states, initial, tuple(rows), num_sets, epsilon
+        )
 
     @property
     def num_letters(self) -> int:
         """``2 ** len(propositions)``."""
         return 1 << len(self.propositions)
+
+    @property
+    def delta(self) -> tuple[tuple[int, ...], ...]:
+        """The explicit view: ``delta[s][letter]``, the successor of ``s`` on ``letter``, for
+        all ``2^n`` letters (made on first use; for small alphabets)."""
+        return self._explicit()[0]
+
+    @property
+    def marks(self) -> tuple[tuple[int, ...], ...]:
+        """The explicit view: ``marks[s][letter]``, bit ``k`` set iff that transition is in
+        acceptance set ``k``."""
+        return self._explicit()[1]
+
+    def _explicit(self) -> tuple[tuple[tuple[int, ...], ...], ...]:
+        found = self._table.get("explicit")
+        if found is None:
+            letters = range(self.num_letters)
+            pairs = [[row.successor(letter) for letter in letters] for row in self.rows]
+            delta = tuple(tuple(t for t, _ in pair) for pair in pairs)
+            marks = tuple(tuple(m for _, m in pair) for pair in pairs)
+            found = self._table["explicit"] = (delta, marks)
+        return found
+
+    def edges(self, state: int) -> list[tuple[int, int, Letters]]:
+        """The transitions of ``state``: ``(target, marks, letters)``, by least letter."""
+        return self.rows[state].edges()
 
     @property
     def is_deterministic(self) -> bool:
@@ -83,7 +254,7 @@ class DigitalAutomaton:
 
     def successor(self, state: int, letter: int) -> tuple[int, int]:
         """``(target, marks)`` of the transition of ``state`` on ``letter``."""
-        return self.delta[state][letter], self.marks[state][letter]
+        return self.rows[state].successor(letter)
 
     def verdict(self, state: int) -> Verdict:
         """The verdict of ``state``."""
@@ -99,5 +270,5 @@ class DigitalAutomaton:
 
     @property
     def num_transitions(self) -> int:
-        """Letter transitions plus epsilon jumps."""
-        return len(self.states) * self.num_letters + len(self.epsilon)
+        """Letter transitions (one per class of letters a state tells apart) plus jumps."""
+        return sum(len(row.targets) for row in self.rows) + len(self.epsilon)

@@ -14,7 +14,6 @@ import stat
 import tempfile
 from pathlib import Path
 
-from mitlc.automata.labels import label_text
 from mitlc.automata.tldgba import Edge, Tldgba
 from mitlc.errors import MitlcError
 
@@ -54,7 +53,7 @@ def guard_text(automaton: Tldgba, edge: Edge) -> str:
 
 def edge_text(automaton: Tldgba, edge: Edge) -> str:
     """The label of an edge: letters and guard, then resets and acceptance sets."""
-    letters = _pretty_label(label_text(edge.letters, automaton.propositions))
+    letters = _pretty_label(edge.label.text(automaton.propositions))
     guard = guard_text(automaton, edge)
     if guard:
         letters = f"({letters}) ∧ {guard}" if "∨" in letters else f"{letters} ∧ {guard}"

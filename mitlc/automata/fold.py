@@ -23,8 +23,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import NamedTuple, TypeAlias
 
-from mitlc.automata.digital import Verdict
+from mitlc.automata.bdd import Diagrams
+from mitlc.automata.digital import Row, Verdict
 from mitlc.automata.guards import partition
+from mitlc.automata.labels import Letters
 from mitlc.automata.ldba import StateKind, Translation
 from mitlc.automata.terms import INF, LIT, TermStore
 from mitlc.automata.text import atom_text, form_text, timed_atom_text
@@ -114,7 +116,10 @@ class _Folder:
     untimed: bool = False
     locations: dict[LocKey, int] = field(default_factory=dict)
     covered: list[dict[Valuation, int]] = field(default_factory=list)
-    behaviour: dict[tuple[int, Valuation], list[Outcome]] = field(default_factory=dict)
+    behaviour: dict[tuple[int, Valuation], tuple[Row, tuple[Outcome, ...]]] = field(
+        default_factory=dict
+    )
+    """Per (location, valuation): its state's row and the outcome of each of its transitions."""
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
         default_factory=dict
     )
@@ -182,22 +187,26 @@ class _Folder:
         jumps: dict[int, list[int]] = {}
         for s, t in automaton.epsilon:
             jumps.setdefault(s, []).append(t)
-        deadline, letters = self.deadline, range(automaton.num_letters)
+        deadline = self.deadline
         while queue:
             deadline.check_now()
             state, key, values, valuation = queue.popleft()
             loc = self._location(key)
             self.covered[loc][valuation] = state
+            row = automaton.rows[state]
             outcomes: list[Outcome] = []
-            for letter in letters:
-                target = automaton.delta[state][letter]
-                t_key, t_values, resets = self.retemplate(target, key, values, 1)
-                outcomes.append((t_key, resets, automaton.marks[state][letter]))
-                visit = (target, t_key, _valuation(t_values))
-                if visit not in seen:
-                    seen.add(visit)
-                    queue.append((target, t_key, t_values, visit[2]))
-            self.behaviour[(loc, valuation)] = outcomes
+            reached: dict[int, tuple[LocKey, tuple[int, ...]]] = {}
+            for target, marks in zip(row.targets, row.marks, strict=True):  # by least letter
+                found = reached.get(target)
+                if found is None:
+                    t_key, t_values, resets = self.retemplate(target, key, values, 1)
+                    found = reached[target] = (t_key, resets)
+                    visit = (target, t_key, _valuation(t_values))
+                    if visit not in seen:
+                        seen.add(visit)
+                        queue.append((target, t_key, t_values, visit[2]))
+                outcomes.append((found[0], found[1], marks))
+            self.behaviour[(loc, valuation)] = (row, tuple(outcomes))
             jumped = set()
             for target in jumps.get(state, ()):
                 t_key, t_values, resets = self.retemplate(target, key, values, 0)
@@ -334,31 +343,38 @@ def _build(folder: _Folder) -> Tldgba:
 def _edges(
     folder: _Folder, loc: int, clocks: list[int], bound: int, sink: Outcome | None
 ) -> list[Edge]:
-    """The edges of one location: per letter, a partition of its valuations into guards
-    (``sink``: the behaviour past every deadline); then letters with the same guard and outcome
-    share an edge."""
+    """The edges of one location: per class of letters its states tell apart (the terminals
+    of their rows' diagrams taken together), a partition of its valuations into guards
+    (``sink``: the behaviour past every deadline); then the classes with the same guard and
+    outcome share an edge, labelled with the union of their letters."""
     num_sets = folder.translation.automaton.num_sets
-    grouped: dict[tuple[Guard, Outcome], set[int]] = {}
-    rows = [
-        (tuple(value for _, value in v), folder.behaviour[(loc, v)]) for v in folder.covered[loc]
-    ]
-    for letter in range(folder.translation.automaton.num_letters):
+    diagrams = Diagrams()
+    points = [tuple(value for _, value in v) for v in folder.covered[loc]]
+    together = diagrams.leaf(())
+    for v in folder.covered[loc]:
+        row, outcomes = folder.behaviour[(loc, v)]
+        node = row.into(diagrams, outcomes.__getitem__)
+        together = diagrams.apply("tuple", lambda t, o: (*t, o), together, node)
+    grouped: dict[tuple[Guard, Outcome], set[tuple[Outcome, ...]]] = {}
+    for each, _ in diagrams.classes(together):
         folder.deadline.check()
-        points = {point: outcomes[letter] for point, outcomes in rows}
-        for box, outcome in partition(points, len(clocks), bound, sink):
+        behaviour = dict(zip(points, each, strict=True))
+        for box, outcome in partition(behaviour, len(clocks), bound, sink):
             guard: Guard = tuple(
                 (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)
             )
-            grouped.setdefault((guard, outcome), set()).add(letter)
+            grouped.setdefault((guard, outcome), set()).add(each)
+    paths = list(diagrams.paths(together))
     edges = []
-    for (guard, (t_key, resets, marks)), letters in grouped.items():
+    for (guard, (t_key, resets, marks)), classes in grouped.items():
         acc = tuple(k for k in range(num_sets) if marks >> k & 1)
-        edges.append(Edge(loc, folder.locations[t_key], frozenset(letters), guard, resets, acc))
+        label = Letters.of_cubes((care, value) for care, value, each in paths if each in classes)
+        edges.append(Edge(loc, folder.locations[t_key], label, guard, resets, acc))
     return edges
 
 
 def _edge_order(edge: Edge) -> tuple[object, ...]:
-    return (edge.source, edge.guard, min(edge.letters), edge.target)
+    return (edge.source, edge.guard, edge.label.least, edge.target)
 
 
 def _key_text(store: TermStore, key: LocKey) -> str:

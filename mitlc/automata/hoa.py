@@ -6,11 +6,12 @@
 * transition-based generalized Büchi acceptance, ``Acceptance: n Inf(0)&...&Inf(n-1)``
   (``acc-name: generalized-Buchi n``, or ``Buchi`` for one set);
 * HOA has no epsilon: a jump ``s -> t`` becomes, for every letter, an edge from ``s`` to
-  ``delta[t][letter]`` with the marks ``marks[t][letter]`` (jumps are closed transitively);
+  ``t``'s successor on that letter, with its marks (jumps are closed transitively);
 * with zero acceptance sets the acceptance is ``t``, under which every infinite run accepts, so
   the violated states are written without outgoing edges: a run that enters one dies;
 * the letters of the edges with one source, target and set of marks are merged into one edge
-  whose label is their minimal cover (:mod:`mitlc.automata.labels`).
+  whose label is their minimal cover (:mod:`mitlc.automata.labels`), made over the classes of
+  letters the state (with the states its jumps reach) tells apart, never over all ``2^n``.
 
 The text is canonical: states in id order, edges sorted by target then marks, labels minimised
 deterministically. The ``properties`` line claims ``deterministic`` when there are no jumps,
@@ -25,9 +26,9 @@ from typing import TypeAlias
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.automata.graph import strongly_connected
-from mitlc.automata.labels import label_text
+from mitlc.automata.labels import Letters
 
-Edges: TypeAlias = dict[tuple[int, int], set[int]]
+Edges: TypeAlias = dict[tuple[int, int], Letters]
 """Per state: ``(target, marks) -> letters``."""
 
 
@@ -37,7 +38,9 @@ def quote(text: str) -> str:
 
 
 def letter_edges(automaton: DigitalAutomaton) -> list[Edges]:
-    """The epsilon-free edges of every state, letters grouped by ``(target, marks)``.
+    """The epsilon-free edges of every state, letters grouped by ``(target, marks)``, each a
+    symbolic letter set (the union of the matching transitions of the state and of the states
+    its jumps reach).
 
     With zero acceptance sets a violated state gets no edges (see the module doc).
     """
@@ -49,9 +52,9 @@ def letter_edges(automaton: DigitalAutomaton) -> list[Edges]:
             for source in closure[s]:
                 if automaton.num_sets == 0 and automaton.states[source].verdict == "violated":
                     continue
-                row, marks = automaton.delta[source], automaton.marks[source]
-                for letter in range(automaton.num_letters):
-                    out.setdefault((row[letter], marks[letter]), set()).add(letter)
+                for target, marks, letters in automaton.edges(source):
+                    found = out.get((target, marks))
+                    out[(target, marks)] = letters if found is None else found | letters
         edges.append(out)
     return edges
 
@@ -74,12 +77,8 @@ def _jump_closure(automaton: DigitalAutomaton) -> list[list[int]]:
 
 
 def _is_deterministic_at(out: Edges) -> bool:
-    seen: set[int] = set()
-    for letters in out.values():
-        if seen & letters:
-            return False
-        seen |= letters
-    return True
+    labels = list(out.values())
+    return all((a & b).is_empty for i, a in enumerate(labels) for b in labels[i + 1 :])
 
 
 def is_semi_deterministic(edges: list[Edges], initial: int, num_sets: int) -> bool:
@@ -125,12 +124,19 @@ def _sccs(edges: list[Edges], states: list[int]) -> list[list[int]]:
     return [sorted(group) for group in groups.values()]
 
 
+def _union(out: Edges) -> Letters:
+    union = Letters.of(0, ())
+    for letters in out.values():
+        union = union | letters
+    return union
+
+
 def to_hoa(automaton: DigitalAutomaton, name: str | None = None) -> str:
     """The HOA v1 text of ``automaton`` (module doc); ``name`` defaults to the formula text."""
     edges = letter_edges(automaton)
     n = automaton.num_sets
     props = ["trans-labels", "explicit-labels", "trans-acc"]
-    if all(len(set().union(*out.values())) == automaton.num_letters for out in edges):
+    if all(_union(out).is_everything for out in edges):
         props.append("complete")
     if automaton.is_deterministic:
         props.append("deterministic")
@@ -149,13 +155,13 @@ def to_hoa(automaton: DigitalAutomaton, name: str | None = None) -> str:
         lines.append("acc-name: Buchi" if n == 1 else f"acc-name: generalized-Buchi {n}")
         lines.append(f"Acceptance: {n} " + "&".join(f"Inf({k})" for k in range(n)))
     lines += ["properties: " + " ".join(props), "--BODY--"]
-    labels: dict[frozenset[int], str] = {}  # many edges share a letter set
+    labels: dict[Letters, str] = {}  # many edges share a letter set
     for s, out in enumerate(edges):
         lines.append(f"State: {s}")
         for target, marks in sorted(out):
-            letters = frozenset(out[(target, marks)])
+            letters = out[(target, marks)]
             if letters not in labels:
-                labels[letters] = label_text(letters, automaton.propositions, "hoa")
+                labels[letters] = letters.text(automaton.propositions, "hoa")
             label = labels[letters]
             sets = [str(k) for k in range(n) if marks >> k & 1]
             acc = " {" + " ".join(sets) + "}" if sets else ""

@@ -127,30 +127,52 @@ class Rules:
         next_guess, marks = moved
         return Key.of_guess(next_guess), marks
 
+    def read_forms(self, key: Key) -> list[int]:
+        """The forms whose progressions determine :meth:`successor` of ``key``: exactly the
+        forms that :meth:`Recurrence.step` and :meth:`Guess.step` progress."""
+        store = self.store
+        if key.kind == "initial":
+            return [key.forms[0]]
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            forms = [key.forms[0], key.forms[1]]
+            for i, chi in enumerate(self.recurrence.chis):
+                if self.recurrence.renewing[i]:
+                    forms.append(chi)
+                else:
+                    forms += [key.forms[2 + 2 * i], store.and_(key.forms[3 + 2 * i], chi)]
+            return forms
+        if key.kind == "accepting":
+            guess = key.guess()
+            return [guess.safety, *(store.or_(pending, seed) for _, seed, pending in guess.tokens)]
+        return []
+
     def reads(self, key: Key) -> int:
         """The mask of the propositions whose value can change :meth:`successor` of ``key``.
 
         :meth:`Progression.step` reads ``letter & reads(form)`` only, and the successor and the
-        marks of a key are functions of the progressions of the forms listed here (exactly the
-        forms that :meth:`Recurrence.step` and :meth:`Guess.step` progress), so
+        marks of a key are functions of the progressions of :meth:`read_forms`, so
         ``successor(key, letter) == successor(key, letter & reads(key))``."""
-        reads, store = self.progression.reads, self.store
+        mask = 0
+        for form in self.read_forms(key):
+            mask |= self.progression.reads(form)
+        return mask
+
+    def transitions(self, key: Key) -> int:
+        """The successor of ``key`` and the marks on every letter: a decision diagram (in
+        ``progression.diagrams``) whose terminals are ``(successor key, marks)``, one per class
+        of letters the key tells apart. It is :meth:`successor` read once per class: the
+        classes are those of the progressions of :meth:`read_forms`, taken together."""
+        d = self.progression.diagrams
         if key.kind == "initial":
-            return reads(key.forms[0])
-        if key.kind == "recurrence":
-            assert self.recurrence is not None
-            forms = key.forms
-            mask = reads(forms[0]) | reads(forms[1])
-            for i, chi in enumerate(self.recurrence.chis):
-                mask |= reads(forms[2 + 2 * i]) | reads(store.and_(forms[3 + 2 * i], chi))
-            return mask
-        if key.kind == "accepting":
-            guess = key.guess()
-            mask = reads(guess.safety)
-            for _, seed, pending in guess.tokens:
-                mask |= reads(store.or_(pending, seed))
-            return mask
-        return 0
+            split = self.progression.split(key.forms[0])
+            return d.map("initial", lambda after: (self.initial_key(after), 0), split)
+        together = d.leaf(())
+        for form in self.read_forms(key):
+            split = self.progression.split(form)
+            together = d.apply("tuple", lambda t, v: (*t, v), together, split)
+        outcomes = {value: self.successor(key, least) for value, least in d.classes(together)}
+        return d.map(("successor", key), outcomes.__getitem__, together)
 
     def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
         """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`."""

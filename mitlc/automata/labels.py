@@ -1,11 +1,15 @@
-"""Boolean labels for sets of letters: two-level minimisation into a sum of cubes.
+"""Boolean labels for sets of letters: symbolic letter sets and two-level minimisation.
 
 A letter is an integer whose bit ``i`` says whether proposition ``i`` holds (as in
-:mod:`mitlc.automata.digital`). A :class:`Cube` is a conjunction of literals: the propositions
-in ``care`` are fixed to their bit in ``value``, the others are free. :func:`minimal_cover`
-turns a set of letters into a short disjunction of cubes whose letters are exactly that set:
-the prime implicants by Quine–McCluskey, the essential ones first, then the fewest further
-primes (an exact branch and bound for small problems, greedy beyond a node budget).
+:mod:`mitlc.automata.digital`). A :class:`Letters` is a set of letters given by the few
+propositions it depends on (its support) and the valuations of those it holds: its size is that
+of its truth table over its support, never ``2^n`` for ``n`` propositions. It is canonical (the
+support is the smallest one), so equal sets are equal values. A :class:`Cube` is a conjunction of
+literals: the propositions in ``care`` are fixed to their bit in ``value``, the others are free.
+:func:`minimal_cover` turns a set of letters into a short disjunction of cubes whose letters are
+exactly that set: the prime implicants by Quine–McCluskey, the essential ones first, then the
+fewest further primes (an exact branch and bound for small problems, greedy beyond a node
+budget). A :class:`Letters` is covered over its support alone.
 
 Everything is deterministic and the cubes come out in a canonical order, so a label is the same
 text on every run. :func:`label_text` writes a cover in mitlc's spec syntax (``a & !b | c``) or
@@ -14,7 +18,8 @@ with HOA's proposition indices (``0&!1 | 2``).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 MAX_EXACT_PROPS = 10
@@ -49,6 +54,118 @@ class Cube(NamedTuple):
     def num_literals(self) -> int:
         """How many propositions the cube fixes."""
         return self.care.bit_count()
+
+
+def submasks(mask: int) -> Iterator[int]:
+    """Every letter whose true propositions lie in ``mask``, ascending: the classes of letters
+    that a reader of the propositions ``mask`` tells apart (``letter & mask``)."""
+    sub = 0
+    while True:
+        yield sub
+        if sub == mask:
+            return
+        sub = (sub - mask) & mask
+
+
+@dataclass(frozen=True, slots=True)
+class Letters:
+    """A set of letters: those whose valuation of the propositions ``support`` is in ``members``
+    (each member a letter inside ``support``). Canonical: ``support`` holds only propositions the
+    set depends on, so two equal sets are equal values (:meth:`of`)."""
+
+    support: int
+    members: frozenset[int]
+
+    @staticmethod
+    def of(mask: int, members: Iterable[int]) -> Letters:
+        """The letters ``l`` with ``l & mask`` in ``members`` (letters inside ``mask``), with the
+        propositions that do not matter dropped from the support."""
+        kept = frozenset(members)
+        bits = mask
+        while bits:
+            bit = bits & -bits
+            bits ^= bit
+            if all(m ^ bit in kept for m in kept):
+                mask &= ~bit
+                kept = frozenset(m & ~bit for m in kept)
+        return Letters(mask if kept else 0, kept)
+
+    @staticmethod
+    def everything() -> Letters:
+        """Every letter (the label ``true``)."""
+        return Letters(0, frozenset({0}))
+
+    def __contains__(self, letter: object) -> bool:
+        return isinstance(letter, int) and letter & self.support in self.members
+
+    @staticmethod
+    def of_cubes(cubes: Iterable[tuple[int, int]]) -> Letters:
+        """The letters of a union of cubes ``(care, value)`` (e.g. a decision diagram's paths)."""
+        listed = list(cubes)
+        support = 0
+        for care, _ in listed:
+            support |= care
+        members = {value | free for care, value in listed for free in submasks(support & ~care)}
+        return Letters.of(support, members)
+
+    def __or__(self, other: Letters) -> Letters:
+        mask = self.support | other.support
+        return Letters.of(mask, (m for m in submasks(mask) if m in self or m in other))
+
+    def __and__(self, other: Letters) -> Letters:
+        mask = self.support | other.support
+        return Letters.of(mask, (m for m in submasks(mask) if m in self and m in other))
+
+    @property
+    def is_empty(self) -> bool:
+        """True for the empty set (the label ``false``)."""
+        return not self.members
+
+    @property
+    def is_everything(self) -> bool:
+        """True for the set of all letters (the label ``true``)."""
+        return bool(self.members) and self.support == 0
+
+    @property
+    def least(self) -> int:
+        """The smallest letter of a non-empty set."""
+        return min(self.members)
+
+    def letters(self, num_props: int) -> list[int]:
+        """Every letter over ``num_props`` propositions in the set, ascending (``2^num_props``
+        letters to look at: for small alphabets and tests)."""
+        return [m for m in range(1 << num_props) if m & self.support in self.members]
+
+    def cover(self) -> list[Cube]:
+        """A minimal cover (:func:`minimal_cover`) made over the support alone: the same cubes
+        as the cover of the whole letter set, since no prime implicant of a set fixes a
+        proposition the set does not depend on."""
+        bits = [i for i in range(self.support.bit_length()) if self.support >> i & 1]
+        compressed = [_compress(m, bits) for m in self.members]
+        return [
+            Cube(_expand(c.care, bits), _expand(c.value, bits))
+            for c in minimal_cover(compressed, len(bits))
+        ]
+
+    def text(
+        self, propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
+    ) -> str:
+        """The label: its cover in mitlc's syntax or HOA's (see :func:`label_text`)."""
+        cover = self.cover()
+        if not cover:
+            return "false" if style == "spec" else "f"
+        cover.sort(key=lambda c: cube_key(c, len(propositions)))
+        return " | ".join(cube_text(cube, propositions, style) for cube in cover)
+
+
+def _compress(letter: int, bits: Sequence[int]) -> int:
+    """The bits ``bits`` of ``letter``, packed: bit ``k`` of the result is bit ``bits[k]``."""
+    return sum(1 << k for k, b in enumerate(bits) if letter >> b & 1)
+
+
+def _expand(packed: int, bits: Sequence[int]) -> int:
+    """The inverse of :func:`_compress`."""
+    return sum(1 << b for k, b in enumerate(bits) if packed >> k & 1)
 
 
 def cube_key(cube: Cube, num_props: int) -> tuple[int, ...]:

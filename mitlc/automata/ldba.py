@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from mitlc.automata.digital import DigitalAutomaton, DigitalState
+from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
 from mitlc.automata.graph import live_states
 from mitlc.automata.keys import SINK, Key, Rules
 from mitlc.automata.keys import StateKind as StateKind
@@ -38,7 +38,8 @@ from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError, collector_paused
 from mitlc.syntax import ast, to_text
 
-MAX_PROPOSITIONS = 16
+MAX_PROPOSITIONS = 62
+"""Letters are 64-bit words in worlds and products (one bit per proposition)."""
 
 
 class TranslationError(MitlcError):
@@ -60,11 +61,14 @@ def state_limit_error(limit: int) -> StateLimitError:
 
 @dataclass(slots=True)
 class _Explored:
-    """The states found so far and their transitions, in discovery order."""
+    """The states found so far, in discovery order, with their transitions as diagrams."""
 
     keys: list[Key] = field(default_factory=list)
     index: dict[Key, int] = field(default_factory=dict)
+    transitions: list[int] = field(default_factory=list)
+    """Per state: its :meth:`Rules.transitions` diagram."""
     delta: list[list[int]] = field(default_factory=list)
+    """Per state: the states its transitions lead to, by least letter."""
     marks: list[list[int]] = field(default_factory=list)
     epsilon: list[tuple[int, int]] = field(default_factory=list)
 
@@ -122,8 +126,8 @@ def _translate_terms(formula: ast.Formula, max_states: int, deadline: Deadline) 
     propositions = ast.atoms(formula)
     if len(propositions) > MAX_PROPOSITIONS:
         raise TranslationError(
-            f"{len(propositions)} propositions; the explicit letter table allows at most "
-            f"{MAX_PROPOSITIONS}"
+            f"{len(propositions)} propositions; a letter is a 64-bit word, which allows at "
+            f"most {MAX_PROPOSITIONS}"
         )
     builder = _Builder(Rules.of(formula), max_states, deadline)
     explored = builder.explore()
@@ -136,56 +140,36 @@ class _Builder:
     max_states: int
     deadline: Deadline
 
-    @property
-    def letters(self) -> range:
-        return range(1 << len(self.rules.store.propositions))
-
     def explore(self) -> _Explored:
-        """Breadth-first exploration from the initial obligation, jumps included."""
+        """Breadth-first exploration from the initial obligation, jumps included.
+
+        A state's successors are made once per class of letters it tells apart (the terminals
+        of :meth:`Rules.transitions`), by least letter: the order in which a table over every
+        letter first meets them, so states are numbered as there, at a cost that grows with the
+        classes, not with ``2^n``."""
         explored = _Explored()
         start = self.rules.start()
-        limit, deadline, letters = self.max_states, self.deadline, self.letters
+        limit, deadline = self.max_states, self.deadline
         keys, index = explored.keys, explored.index
-        successor = self.rules.successor
+        classes = self.rules.progression.diagrams.classes
         explored.id(start, limit)
         position = 0
         while position < len(keys):
             deadline.check_now()
             key = keys[position]
+            node = self.rules.transitions(key)
             targets, marks = [], []
-            if key.kind == "initial":  # the common case: no marks, one target per obligation
-                targets = self._initial_row(explored, key.forms[0])
-                marks = [0] * len(letters)
-            else:
-                for letter in letters:
-                    target, mark = successor(key, letter)
-                    found = index.get(target)
-                    targets.append(explored.id(target, limit) if found is None else found)
-                    marks.append(mark)
+            for (target, mark), _ in classes(node):
+                found = index.get(target)
+                targets.append(explored.id(target, limit) if found is None else found)
+                marks.append(mark)
+            explored.transitions.append(node)
             explored.delta.append(targets)
             explored.marks.append(marks)
             for jump in self.rules.jumps(key, deadline):
                 explored.epsilon.append((position, explored.id(jump, limit)))
             position += 1
         return explored
-
-    def _initial_row(self, explored: _Explored, form: int) -> list[int]:
-        """The successors of the initial-component state of ``form``, letter by letter: what
-        :meth:`Rules.successor` gives, each obligation looked up once."""
-        step, initial_key = self.rules.progression.step, self.rules.initial_key
-        index, row = explored.index, []
-        made: dict[int, int] = {}
-        for letter in self.letters:
-            after = step(form, letter)
-            found = made.get(after)
-            if found is None:
-                successor = initial_key(after)
-                found = index.get(successor)
-                if found is None:
-                    found = explored.id(successor, self.max_states)
-                made[after] = found
-            row.append(found)
-        return row
 
     def finish(self, explored: _Explored, formula_text: str) -> Translation:
         """Merge dead states into the sink, renumber breadth-first, attach the obligations."""
@@ -204,8 +188,12 @@ class _Builder:
         remap = [-1 if sink is None else sink] * len(keys)
         for old, new in new_id.items():
             remap[old] = new
-        delta = [tuple([remap[t] for t in explored.delta[old]]) for old in order]
-        marks = [tuple(explored.marks[old]) for old in order]
+        diagrams, index = rules.progression.diagrams, explored.index
+
+        def relabel(outcome: tuple[Key, int]) -> tuple[int, int]:
+            return remap[index[outcome[0]]], outcome[1]
+
+        rows = [Row.export(diagrams, explored.transitions[old], relabel) for old in order]
         states = []
         for old in order:
             self.deadline.check()
@@ -213,8 +201,7 @@ class _Builder:
         new_keys = [keys[old] for old in order]
         if sink is not None:
             new_keys.append(SINK)
-            delta.append(tuple(sink for _ in self.letters))
-            marks.append(tuple(0 for _ in self.letters))
+            rows.append(Row.constant(sink))
             states.append(DigitalState("false", "initial", "violated"))
         epsilon = sorted(
             (new_id[s], new_id[t]) for s, t in explored.epsilon if s in live and t in live
@@ -226,8 +213,7 @@ class _Builder:
             propositions=rules.store.propositions,
             states=tuple(states),
             initial=initial,
-            delta=tuple(delta),
-            marks=tuple(marks),
+            rows=tuple(rows),
             num_sets=rules.num_sets,
             epsilon=tuple(epsilon),
         )

@@ -16,16 +16,36 @@ where ``p'`` is the progression of ``p`` and an interval ending below 0 contribu
 
 from __future__ import annotations
 
-from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
+from collections.abc import Callable
+
+from mitlc.automata.bdd import Diagrams
+from mitlc.automata.terms import (
+    ALWAYS,
+    EVENTUALLY,
+    INF,
+    LIT,
+    RELEASE,
+    SEQUENTIAL_CUBES,
+    UNTIL,
+    Cube,
+    TermStore,
+)
 
 
 class Progression:
-    """Memoised progression over one term store."""
+    """Memoised progression over one term store.
+
+    The progression of a form is computed once for all letters, as a decision diagram over the
+    propositions whose terminals are the progressed forms (:meth:`split`, in the store's
+    :class:`~mitlc.automata.bdd.Diagrams`): its terminals are the classes of letters the form
+    tells apart. :meth:`step` reads it on one letter."""
 
     def __init__(self, store: TermStore) -> None:
         self.store = store
+        self.diagrams = Diagrams()
+        self._splits: dict[int, int] = {}
+        self._atom_splits: dict[int, int] = {}
         self._form_cache: dict[tuple[int, int], int] = {}
-        self._atom_cache: dict[tuple[int, int], int] = {}
         self._reads: dict[int, int] = {}
 
     def step(self, form: int, letter: int) -> int:
@@ -35,7 +55,7 @@ class Progression:
         key = (form, letter)
         found = self._form_cache.get(key)
         if found is None:
-            found = self.store.substitute(form, lambda atom: self._atom_step(atom, letter))
+            found = self.diagrams.evaluate(self.split(form), letter)
             self._form_cache[key] = found
         return found
 
@@ -59,52 +79,115 @@ class Progression:
         operand_reads = self.reads(left)
         return operand_reads | self.reads(right) if kind in (UNTIL, RELEASE) else operand_reads
 
-    def _atom_step(self, atom: int, letter: int) -> int:
-        key = (atom, letter)
-        found = self._atom_cache.get(key)
+    def split(self, form: int) -> int:
+        """The progression of ``form`` on every letter: a diagram whose terminals are forms.
+
+        A form is the disjunction of its cubes' conjunctions of atoms; each atom's progression
+        is combined as :meth:`TermStore.substitute` combines them for one letter (one cube at a
+        time, or, past :data:`SEQUENTIAL_CUBES` cubes, the minimal cubes of their union), so
+        every terminal is the form that substitution gives on the letters of its class."""
+        found = self._splits.get(form)
         if found is None:
-            found = self._compute(atom, letter)
-            self._atom_cache[key] = found
+            found = self._splits[form] = self._split_form(form)
         return found
 
-    def _compute(self, atom: int, letter: int) -> int:
-        store = self.store
+    def _split_form(self, form: int) -> int:
+        store, d = self.store, self.diagrams
+        cubes = store.forms[form]
+        if len(cubes) == 1:
+            (cube,) = cubes
+            if len(cube) == 1:
+                (only,) = cube
+                return self._atom_split(only)
+        if len(cubes) <= SEQUENTIAL_CUBES:
+            result = d.leaf(store.false)
+            for cube in cubes:
+                result = d.apply("or", store.or_, result, self._conjoin(cube))
+            return result
+        union = d.leaf(frozenset())
+        for cube in cubes:
+            union = d.apply("union", _union(store), union, self._conjoin(cube))
+        return d.map("absorb", lambda found: _absorbed(store, found), union)
+
+    def _conjoin(self, cube: frozenset[int]) -> int:
+        store, d = self.store, self.diagrams
+        conjunction = d.leaf(store.true)
+        for atom in cube:
+            conjunction = d.apply("and", store.and_, conjunction, self._atom_split(atom))
+        return conjunction
+
+    def _atom_split(self, atom: int) -> int:
+        found = self._atom_splits.get(atom)
+        if found is None:
+            found = self._atom_splits[atom] = self._compute(atom)
+        return found
+
+    def _compute(self, atom: int) -> int:
+        """The progression of one atom (module docstring), as a diagram."""
+        store, d = self.store, self.diagrams
         kind, lo, hi, left, right = store.atoms[atom]
         if kind == LIT:
-            return store.true if bool(letter >> lo & 1) == bool(hi) else store.false
+            yes, no = d.leaf(store.true), d.leaf(store.false)
+            return d.node(lo, no, yes) if hi else d.node(lo, yes, no)
         later_hi = hi if hi == INF else hi - 1
         if kind in (EVENTUALLY, ALWAYS):
             if lo > 0:  # a delay F[a,a] p ends in p itself; a window keeps its last step
-                return store.temporal(kind, lo - 1, later_hi, left, keep_point=lo != hi)
-            now = self.step(left, letter)
+                return d.leaf(store.temporal(kind, lo - 1, later_hi, left, keep_point=lo != hi))
+            now = self.split(left)
             if kind == EVENTUALLY:
                 rest = (
                     store.false
                     if hi == 0
                     else store.temporal(kind, 0, later_hi, left, keep_point=True)
                 )
-                return store.or_(now, rest)
+                return d.map(("or", rest), lambda v: store.or_(v, rest), now)
             rest = (
                 store.true if hi == 0 else store.temporal(kind, 0, later_hi, left, keep_point=True)
             )
-            return store.and_(now, rest)
-        left_now = self.step(left, letter)
+            return d.map(("and", rest), lambda v: store.and_(v, rest), now)
+        left_now = self.split(left)
         if kind == UNTIL:
             if lo > 0:
                 shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
-                return store.and_(left_now, shifted)
+                return d.map(("and", shifted), lambda v: store.and_(v, shifted), left_now)
             rest = (
                 store.false
                 if hi == 0
                 else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
             )
-            return store.or_(self.step(right, letter), store.and_(left_now, rest))
+            return d.apply(
+                ("until", rest),
+                lambda q, p: store.or_(q, store.and_(p, rest)),
+                self.split(right),
+                left_now,
+            )
         if lo > 0:
             shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
-            return store.or_(left_now, shifted)
+            return d.map(("or", shifted), lambda v: store.or_(v, shifted), left_now)
         rest = (
             store.true
             if hi == 0
             else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
         )
-        return store.and_(self.step(right, letter), store.or_(left_now, rest))
+        return d.apply(
+            ("release", rest),
+            lambda q, p: store.and_(q, store.or_(p, rest)),
+            self.split(right),
+            left_now,
+        )
+
+
+def _union(store: TermStore) -> Callable[[frozenset[Cube], int], frozenset[Cube]]:
+    def union(found: frozenset[Cube], conjunction: int) -> frozenset[Cube]:
+        return found | store.forms[conjunction]
+
+    return union
+
+
+def _absorbed(store: TermStore, found: frozenset[Cube]) -> int:
+    """What :meth:`TermStore.substitute` makes of the union of many cubes' conjunctions."""
+    if frozenset() in found:
+        return store.true
+    if len(found) == 1:
+        return store.form(found)
+    return store.form(store._absorb(found))

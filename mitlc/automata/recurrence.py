@@ -10,6 +10,13 @@ before the last breakpoint, and ``N``, those started since. Reading a letter,
 is ``true`` every token of the old batch was met, the step is in acceptance set ``i``, and
 ``N'`` becomes the batch. ``S`` fails into the sink; ``C``, once met, marks the last set on
 every step. Examples: ``G F a``, ``G (req -> F done)``, ``G a & F b``, ``G F a & G F b``.
+
+A *renewing* ``χ`` (a disjunction of ``F φ`` with ``φ`` propositional, as in ``G F a`` or
+``G (F a & F b)``) needs no tokens: its progression is ``true`` on a letter satisfying some
+``φ`` and ``χ`` itself on any other, so every pending token is met at the same step, and
+``G χ`` holds iff such letters come infinitely often. Its set is marked on those letters and
+its ``B`` and ``N`` stay ``true`` (the generalized Büchi automaton of ``G F φ_1 & ... & G F
+φ_n`` with one state, instead of ``3^n``).
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from dataclasses import dataclass
 
 from mitlc.automata.accepting import closure, unbounded_atoms
 from mitlc.automata.progress import Progression
-from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, RELEASE, UNTIL, TermStore
+from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,6 +35,8 @@ class Recurrence:
     safety: int
     cosafety: int
     chis: tuple[int, ...]
+    renewing: tuple[bool, ...]
+    """Per ``chi``: whether it is renewing (module docstring)."""
 
     cosafety_set_needed: bool
     """Whether a co-safety part is owed (then it has the last acceptance set)."""
@@ -44,7 +53,11 @@ class Recurrence:
         anyway), so the first mark is earned, not given: an empty first batch would mark every
         set on the first step, and a round would look complete before anything happened.
         """
-        tokens = [form for chi in self.chis for form in (chi, store.true)]
+        tokens = [
+            form
+            for chi, renewing in zip(self.chis, self.renewing, strict=True)
+            for form in ((store.true, store.true) if renewing else (chi, store.true))
+        ]
         return (self.safety, self.cosafety, *tokens)
 
     def step(
@@ -59,6 +72,11 @@ class Recurrence:
         marks = 0
         tokens: list[int] = []
         for i, chi in enumerate(self.chis):
+            if self.renewing[i]:
+                if progression.step(chi, letter) == store.true:
+                    marks |= 1 << i
+                tokens += [store.true, store.true]
+                continue
             batch = progression.step(forms[2 + 2 * i], letter)
             fresh = progression.step(store.and_(forms[3 + 2 * i], chi), letter)
             if store.false in (batch, fresh):
@@ -105,7 +123,22 @@ def split_recurrence(store: TermStore, root: int) -> Recurrence | None:
         else:
             return None
     rest = store.all_of(cosafety)
-    return Recurrence(store.all_of(safety), rest, tuple(chis), rest != store.true)
+    renewing = tuple(_is_renewing(store, chi) for chi in chis)
+    return Recurrence(store.all_of(safety), rest, tuple(chis), renewing, rest != store.true)
+
+
+def _is_renewing(store: TermStore, chi: int) -> bool:
+    """Whether ``chi`` is a disjunction of ``F φ`` with ``φ`` propositional."""
+    for cube in store.forms[chi]:
+        if len(cube) != 1:
+            return False
+        (atom,) = cube
+        kind, lo, hi, operand, _ = store.atoms[atom]
+        if kind != EVENTUALLY or lo != 0 or hi != INF:
+            return False
+        if any(store.atoms[a][0] != LIT for a in closure(store, operand)):
+            return False
+    return bool(store.forms[chi])
 
 
 def _conjuncts(store: TermStore, form: int) -> list[int]:

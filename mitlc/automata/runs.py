@@ -35,7 +35,7 @@ def accepts_lasso(automaton: DigitalAutomaton, lasso: Lasso) -> bool:
     loop_start = len(lasso.prefix)
     letters = [automaton.letter_index(letter) for letter in lasso.letters]
     following = [*range(1, size), loop_start]
-    delta, marks = automaton.delta, automaton.marks
+    step = automaton.successor
     need = automaton.all_sets
     if automaton.num_sets == 0:
         bad = frozenset(i for i, st in enumerate(automaton.states) if st.verdict == "violated")
@@ -55,9 +55,9 @@ def accepts_lasso(automaton: DigitalAutomaton, lasso: Lasso) -> bool:
         state, pos = divmod(node, size)
         letter = letters[pos]
         out = [(t * size + pos, _EPSILON) for t in jumps.get(state, ())]
-        target = delta[state][letter]
+        target, marks = step(state, letter)
         if target not in bad:
-            out.append((target * size + following[pos], marks[state][letter]))
+            out.append((target * size + following[pos], marks))
         return out
 
     # Iterative Tarjan, exploring the product on the fly from (initial, 0).
@@ -124,7 +124,6 @@ def _deterministic_accepts(
     need: int,
 ) -> bool:
     """Acceptance without epsilon jumps: follow the one run until a product node repeats."""
-    delta, marks = automaton.delta, automaton.marks
     size = len(letters)
     seen: dict[int, int] = {}  # product node -> step at which it was entered
     step_marks: list[int] = []
@@ -138,8 +137,9 @@ def _deterministic_accepts(
             return covered & need == need
         seen[node] = len(step_marks)
         letter = letters[pos]
-        step_marks.append(marks[state][letter])
-        state, pos = delta[state][letter], following[pos]
+        state, marks = automaton.successor(state, letter)
+        step_marks.append(marks)
+        pos = following[pos]
         if state in bad:
             return False
 
@@ -150,6 +150,6 @@ def run_states(automaton: DigitalAutomaton, word: Sequence[frozenset[str]]) -> l
     state = automaton.initial
     visited = [state]
     for letter in word:
-        state = automaton.delta[state][automaton.letter_index(letter)]
+        state = automaton.successor(state, automaton.letter_index(letter))[0]
         visited.append(state)
     return visited

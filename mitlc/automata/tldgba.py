@@ -1,7 +1,7 @@
 """The timed LDGBA: locations, clocks, guarded edges with resets (DESIGN.md, "The automaton").
 
 Clock semantics: all clocks are 0 at position 0. Reading position ``i`` with valuation ``v``
-takes the unique edge of the current location whose letter set holds the letter and whose guard
+takes the unique edge of the current location whose label holds the letter and whose guard
 holds for ``v``; then every clock the edge resets becomes 0 and every other clock becomes
 ``min(v + 1, bound)``. Guards are closed integer intervals per clock; a clock absent from a guard
 is unconstrained. An epsilon jump reads no letter and
@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mitlc.automata.digital import Component, Verdict
+from mitlc.automata.labels import Letters
 
 Guard = tuple[tuple[int, int, int], ...]
 """``((clock, lo, hi), ...)`` sorted by clock: closed intervals (clocks stop at their bound)."""
@@ -33,11 +34,11 @@ class Location:
 
 @dataclass(frozen=True, slots=True)
 class Edge:
-    """A guarded edge: letters (as a set of letter indices), a clock guard, resets, marks."""
+    """A guarded edge: its letters (a Boolean label), a clock guard, resets, marks."""
 
     source: int
     target: int
-    letters: frozenset[int]
+    label: Letters
     guard: Guard
     reset: tuple[int, ...]
     acc: tuple[int, ...]
@@ -77,7 +78,7 @@ class Tldgba:
         return [
             e
             for e in self.edges
-            if e.source == location and letter in e.letters and guard_holds(e.guard, valuation)
+            if e.source == location and letter in e.label and guard_holds(e.guard, valuation)
         ]
 
     def advance(self, edge: Edge | Jump, valuation: tuple[int, ...]) -> tuple[int, ...]:

@@ -105,11 +105,14 @@ def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
     for q, state in enumerate(automaton.states):
         if state.verdict == "satisfied":
             distance[q] = 0.0
-    delta = np.asarray(automaton.delta, dtype=np.int64).reshape(num_q, -1)
-    marks = np.asarray(automaton.marks, dtype=np.int64).reshape(num_q, -1)
-    direct = np.where(marks.any(axis=1), 1.0, inf)
+    rows = automaton.rows
+    sources = np.repeat(np.arange(num_q), [len(row.targets) for row in rows])
+    targets = np.asarray([t for row in rows for t in row.targets], dtype=np.int64)
+    direct = np.where([any(row.marks) for row in rows], 1.0, inf)
     for _ in range(num_q):
-        updated = np.minimum(distance, np.minimum(direct, 1.0 + distance[delta].min(axis=1)))
+        nearest = np.full(num_q, np.inf)
+        np.minimum.at(nearest, sources, distance[targets])
+        updated = np.minimum(distance, np.minimum(direct, 1.0 + nearest))
         updated[distance == 0.0] = 0.0
         if np.array_equal(updated, distance):
             break

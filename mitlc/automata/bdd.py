@@ -1,0 +1,165 @@
+"""Decision diagrams over the propositions: the symbolic letters of the translation.
+
+A letter is an integer whose bit ``i`` says whether proposition ``i`` holds. A *diagram* is a
+reduced ordered decision diagram whose inner nodes test one proposition and whose terminals hold
+any hashable value: a multi-terminal BDD (Bryant, "Graph-based algorithms for Boolean function
+manipulation", IEEE ToC 1986; Clarke, McMillan, Zhao, Fujita, Yang, "Spectral transforms for
+large Boolean functions with applications to technology mapping", DAC 1993). mitlc's diagrams
+map a letter to what a state does on it (a progressed obligation, a successor and its marks), so
+the classes of letters a state tells apart are the terminals of its diagram: a state that
+avoids three hazards and waits for one room has a handful of classes, not ``2^n``.
+
+Nodes are hash-consed in a :class:`Diagrams` store, so equal functions are equal node ids, and
+operations are memoised. The variable order puts the highest proposition at the top: a
+depth-first walk that takes the low branch first then meets the terminals in increasing order of
+their least letter (:meth:`Diagrams.classes`), the order in which a table over all letters
+lists them, so states are numbered as an explicit translation would number them.
+
+No library is used: ``dd`` (the maintained Python BDD package) has Boolean BDDs only, and the
+transition function of a state needs terminals that are states; the few operations needed here
+(apply, map, evaluate, classes, paths) fit in this module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Iterator
+from typing import Any
+
+LEAF = -1
+"""The variable of a terminal node (below every proposition)."""
+
+
+class Diagrams:
+    """A store of reduced ordered decision diagrams with arbitrary terminal values."""
+
+    def __init__(self) -> None:
+        self.var: list[int] = []
+        self.low: list[int] = []
+        self.high: list[int] = []
+        self.values: list[Any] = []
+        self._leaves: dict[tuple[type, Hashable], int] = {}
+        self._inner: dict[tuple[int, int, int], int] = {}
+        self._memo: dict[tuple[Hashable, int, int], int] = {}
+
+    def leaf(self, value: Hashable) -> int:
+        """The terminal holding ``value``."""
+        key = (type(value), value)
+        found = self._leaves.get(key)
+        if found is None:
+            found = self._leaves[key] = self._add(LEAF, -1, -1, value)
+        return found
+
+    def node(self, var: int, low: int, high: int) -> int:
+        """The node testing proposition ``var``: ``low`` where it is false, ``high`` where true
+        (reduced: a test whose branches agree is its branch)."""
+        if low == high:
+            return low
+        key = (var, low, high)
+        found = self._inner.get(key)
+        if found is None:
+            found = self._inner[key] = self._add(var, low, high, None)
+        return found
+
+    def _add(self, var: int, low: int, high: int, value: Any) -> int:
+        self.var.append(var)
+        self.low.append(low)
+        self.high.append(high)
+        self.values.append(value)
+        return len(self.var) - 1
+
+    def value(self, f: int) -> Any:
+        """The value of a terminal."""
+        return self.values[f]
+
+    def apply(self, name: Hashable, op: Callable[[Any, Any], Hashable], f: int, g: int) -> int:
+        """The diagram of ``op(f(l), g(l))`` on every letter ``l``; ``name`` identifies ``op``
+        for the memo (the same name must always mean the same operation)."""
+        var, low, high, memo = self.var, self.low, self.high, self._memo
+
+        def go(f: int, g: int) -> int:
+            key = (name, f, g)
+            found = memo.get(key)
+            if found is not None:
+                return found
+            vf, vg = var[f], var[g]
+            if vf == LEAF and vg == LEAF:
+                found = self.leaf(op(self.values[f], self.values[g]))
+            else:
+                top = vf if vf > vg else vg
+                f0, f1 = (low[f], high[f]) if vf == top else (f, f)
+                g0, g1 = (low[g], high[g]) if vg == top else (g, g)
+                found = self.node(top, go(f0, g0), go(f1, g1))
+            memo[key] = found
+            return found
+
+        return go(f, g)
+
+    def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:
+        """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo."""
+        var, memo = self.var, self._memo
+
+        def go(f: int) -> int:
+            key = (name, f, -1)
+            found = memo.get(key)
+            if found is None:
+                if var[f] == LEAF:
+                    found = self.leaf(op(self.values[f]))
+                else:
+                    found = self.node(var[f], go(self.low[f]), go(self.high[f]))
+                memo[key] = found
+            return found
+
+        return go(f)
+
+    def evaluate(self, f: int, letter: int) -> Any:
+        """The value of ``f`` on ``letter``."""
+        var, low, high = self.var, self.low, self.high
+        while var[f] != LEAF:
+            f = high[f] if letter >> var[f] & 1 else low[f]
+        return self.values[f]
+
+    def classes(self, f: int) -> list[tuple[Any, int]]:
+        """Each distinct value of ``f`` with its least letter, in increasing order of those."""
+        var, low, high = self.var, self.low, self.high
+        seen: set[int] = set()
+        out: list[tuple[Any, int]] = []
+
+        def go(f: int, letter: int) -> None:
+            if f in seen:  # met before on a smaller letter, with all it leads to
+                return
+            seen.add(f)
+            if var[f] == LEAF:
+                out.append((self.values[f], letter))
+                return
+            go(low[f], letter)
+            go(high[f], letter | 1 << var[f])
+
+        go(f, 0)
+        return out
+
+    def paths(self, f: int) -> Iterator[tuple[int, int, Any]]:
+        """Every path of ``f``: ``(care, value, terminal value)``, the propositions it tests,
+        their values and where it ends (disjoint cubes that cover every letter)."""
+        var, low, high = self.var, self.low, self.high
+        stack = [(f, 0, 0)]
+        while stack:
+            node, care, value = stack.pop()
+            if var[node] == LEAF:
+                yield care, value, self.values[node]
+                continue
+            bit = 1 << var[node]
+            stack.append((high[node], care | bit, value | bit))
+            stack.append((low[node], care | bit, value))
+
+    def support(self, f: int) -> int:
+        """The mask of the propositions ``f`` tests."""
+        var, low, high = self.var, self.low, self.high
+        mask, seen, todo = 0, set(), [f]
+        while todo:
+            node = todo.pop()
+            if node in seen or var[node] == LEAF:
+                continue
+            seen.add(node)
+            mask |= 1 << var[node]
+            todo += [low[node], high[node]]
+        return mask
