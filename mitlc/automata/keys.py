@@ -78,9 +78,11 @@ class Rules:
         self.substitution = Substitution(self.store)
 
     @staticmethod
-    def of(formula: ast.Formula) -> Rules:
-        """The rules of ``formula``: its normal form, μ/ν-atoms, acceptance sets, recurrence."""
-        store = TermStore(ast.atoms(formula))
+    def of(formula: ast.Formula, store: TermStore | None = None) -> Rules:
+        """The rules of ``formula``: its normal form, μ/ν-atoms, acceptance sets, recurrence
+        (in ``store`` when given: one that already holds the formula's forms, so that keys of
+        two rules over it compare)."""
+        store = TermStore(ast.atoms(formula)) if store is None else store
         root = normalize(formula, store)
         mu, nu = unbounded_atoms(store, root)
         num_sets = 0 if not mu else 1 if not nu else len(mu)
