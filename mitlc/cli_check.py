@@ -1,6 +1,8 @@
 """``mitlc check``: a world checked exactly, with the POMDP bounds where the world has them."""
 
-from __future__ import annotations
+# No `from __future__ import annotations` here: typer reads every command's annotations at each
+# start (all commands, for any one), and evaluating them once at import spares it compiling and
+# evaluating them as strings (about 10 ms of the start-up; bench/startup_bench.py).
 
 from collections.abc import Callable
 from pathlib import Path
@@ -136,8 +138,8 @@ def check_command(
 
 
 def _observed(
-    world: World, product: Product, deadline: Deadline
-) -> tuple[ObservedBound | None, str]:
+    world: "World", product: "Product", deadline: Deadline
+) -> "tuple[ObservedBound | None, str]":
     """The best observation-based policy found and its exact success, or why there is none
     (its time limit included: the exact results above it stand)."""
     from mitlc.check.observed import ObservedBoundError, observed_bound
@@ -149,7 +151,7 @@ def _observed(
         return None, f"unavailable: {err}"
 
 
-def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
+def _observed_policy(world: "World", found: "ObservedBound") -> dict[str, object]:
     """The observation-based policy as data: an action per step, observation and automaton
     state that it meets."""
     assert world.observations is not None
@@ -170,7 +172,7 @@ def _observed_policy(world: World, found: ObservedBound) -> dict[str, object]:
 
 
 def _pomdp_bounds(
-    world: World, digital: TaskAutomaton, max_product_states: int, deadline: Deadline
+    world: "World", digital: "TaskAutomaton", max_product_states: int, deadline: Deadline
 ) -> dict[str, object]:
     """Storm's lower and upper bounds of the POMDP's optimum, or why there are none (its time
     limit included)."""

@@ -1,7 +1,9 @@
 """The learning commands of ``mitlc``: ``train``, ``eval`` and ``plot`` (registered on the
 app by :mod:`mitlc.cli`, which owns error reporting)."""
 
-from __future__ import annotations
+# No `from __future__ import annotations` here: typer reads every command's annotations at each
+# start (all commands, for any one), and evaluating them once at import spares it compiling and
+# evaluating them as strings (about 10 ms of the start-up; bench/startup_bench.py).
 
 import json
 import signal
@@ -46,7 +48,7 @@ class _StopFlag:
         self.raised = False
         self._previous: Any = None
 
-    def __enter__(self) -> _StopFlag:
+    def __enter__(self) -> "_StopFlag":
         self._previous = signal.signal(signal.SIGINT, self._handle)
         return self
 
@@ -199,7 +201,7 @@ def train_command(
         _print_evaluation(directory, None, 12345, as_json=False, bounds=False)
 
 
-def _flatten(config: TrainConfig) -> dict[str, Any]:
+def _flatten(config: "TrainConfig") -> dict[str, Any]:
     """A saved run's settings as dotted overrides (what ``--resume`` starts from)."""
     from mitlc.learn.config import to_data
 

@@ -2,7 +2,9 @@
 :mod:`mitlc.cli`, which owns error reporting). They need the extra ``mitlc[sweep]`` (Ray Tune
 and rliable)."""
 
-from __future__ import annotations
+# No `from __future__ import annotations` here: typer reads every command's annotations at each
+# start (all commands, for any one), and evaluating them once at import spares it compiling and
+# evaluating them as strings (about 10 ms of the start-up; bench/startup_bench.py).
 
 import importlib.util
 import os

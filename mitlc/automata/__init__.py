@@ -7,10 +7,8 @@ from mitlc.automata.fold import fold
 from mitlc.automata.lazy import LazyAutomaton
 from mitlc.automata.ldba import StateLimitError, TranslationError, translate, translate_terms
 from mitlc.automata.tldgba import Tldgba
-from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, collector_paused
+from mitlc.limits import DEFAULT_MAX_STATES, DEFAULT_TIME_LIMIT, Deadline, collector_paused
 from mitlc.syntax import Formula
-
-DEFAULT_MAX_STATES = 1_000_000
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,7 +12,6 @@ from typing import Any
 from mitlc.automata.labels import Letters, submasks
 from mitlc.automata.tldgba import Edge, Jump, Location, Tldgba
 from mitlc.errors import MitlcError
-from mitlc.semantics import holds_finite
 from mitlc.syntax import Formula, atoms, parse, to_text
 
 FORMAT = "mitlc.tldgba/1"
@@ -124,6 +123,8 @@ def _location(data: dict[str, Any], clocks: tuple[int, ...]) -> Location:
 def label_letters(label: Formula, propositions: tuple[str, ...]) -> Letters:
     """The letters satisfying a propositional ``label``: the valuations of the propositions it
     mentions (``2^k`` for ``k`` of them, whatever the alphabet) that make it true."""
+    from mitlc.semantics import holds_finite  # only reading artifacts back needs it
+
     index = {p: i for i, p in enumerate(propositions)}
     unknown = [p for p in atoms(label) if p not in index]
     if unknown:

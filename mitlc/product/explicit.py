@@ -139,10 +139,12 @@ def automaton_letters(world: World, propositions: Sequence[str]) -> IntArray:
 
 def estimate(world: World, automaton: DigitalAutomaton) -> tuple[int, int]:
     """Upper bounds on the product's states and transitions, before it is built (see the
-    module docstring): ``(S * Q + 2, Q * T + S * J)``."""
+    module docstring): ``(S * Q + 2, Q * T + S * J + 2 A)``, the two absorbing states with a
+    loop per action."""
     q = len(automaton.states)
     states = world.num_states * q + 2
     transitions = q * len(world.transitions.targets) + world.num_states * len(automaton.epsilon)
+    transitions += 2 * world.num_actions
     return states, transitions
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-from importlib import resources
 from pathlib import Path
 
 import lark
@@ -15,11 +14,13 @@ def grammar_path() -> Path:
     """Where the grammar is read from: inside the installed package, else the source checkout.
 
     The wheel carries ``grammars/mitl.lark`` as ``mitlc/grammars/mitl.lark``; an editable
-    install or a plain checkout reads the top-level ``grammars/`` directory.
+    install or a plain checkout reads the top-level ``grammars/`` directory. (The package's
+    directory is found from this file, as ``importlib.resources`` would, without importing it:
+    part of the command line's start-up.)
     """
-    packaged = resources.files("mitlc").joinpath("grammars", GRAMMAR_NAME)
+    packaged = Path(__file__).parents[1] / "grammars" / GRAMMAR_NAME
     if packaged.is_file():
-        return Path(str(packaged))
+        return packaged
     checkout = Path(__file__).resolve().parents[2] / "grammars" / GRAMMAR_NAME
     if checkout.is_file():
         return checkout
