@@ -350,15 +350,26 @@ def _edges(
     num_sets = folder.translation.automaton.num_sets
     diagrams = Diagrams()
     points = [tuple(value for _, value in v) for v in folder.covered[loc]]
+    # The classes depend on the shape of each row's diagram (which letters take which of its
+    # transitions), not on where the transitions go: states of one location share shapes.
     together = diagrams.leaf(())
+    shapes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
+    which = []  # per point: its shape's position in a class, and its outcomes
     for v in folder.covered[loc]:
         row, outcomes = folder.behaviour[(loc, v)]
-        node = row.into(diagrams, outcomes.__getitem__)
-        together = diagrams.apply("tuple", lambda t, o: (*t, o), together, node)
-    grouped: dict[tuple[Guard, Outcome], set[tuple[Outcome, ...]]] = {}
+        index = shapes.get((row.root, row.tests))
+        if index is None:
+            index = shapes[(row.root, row.tests)] = len(shapes)
+            node = row.into(diagrams, lambda k: k)
+            together = diagrams.apply("tuple", lambda t, k: (*t, k), together, node)
+        which.append((index, outcomes))
+    grouped: dict[tuple[Guard, Outcome], set[tuple[int, ...]]] = {}
     for each, _ in diagrams.classes(together):
         folder.deadline.check()
-        behaviour = dict(zip(points, each, strict=True))
+        behaviour = {
+            point: outcomes[each[index]]
+            for point, (index, outcomes) in zip(points, which, strict=True)
+        }
         for box, outcome in partition(behaviour, len(clocks), bound, sink):
             guard: Guard = tuple(
                 (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)
