@@ -21,7 +21,7 @@ HEAVY = ("numpy", "torch", "yaml", "gymnasium", "ray", "scipy", "matplotlib", "p
 """Packages that neither ``fmt`` nor ``compile`` needs."""
 
 HEAVY_MITLC = ("mitlc.check", "mitlc.product", "mitlc.worlds", "mitlc.task", "mitlc.sweep",
-               "mitlc.gym", "mitlc.labels")  # fmt: skip
+               "mitlc.gym", "mitlc.labels", "mitlc.automata.lazy")  # fmt: skip
 """Parts of mitlc that neither needs (``mitlc.learn`` is checked apart: ``mitlc.learn.names``,
 the learners' names for ``--algo``, is light)."""
 

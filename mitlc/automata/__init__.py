@@ -1,14 +1,26 @@
 """MITL to automata: the digital LDGBA (ground truth), its folding and its emitters."""
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState
 from mitlc.automata.fold import fold
-from mitlc.automata.lazy import LazyAutomaton
 from mitlc.automata.ldba import StateLimitError, TranslationError, translate, translate_terms
 from mitlc.automata.tldgba import Tldgba
 from mitlc.limits import DEFAULT_MAX_STATES, DEFAULT_TIME_LIMIT, Deadline, collector_paused
 from mitlc.syntax import Formula
+
+if TYPE_CHECKING:
+    from mitlc.automata.lazy import LazyAutomaton
+
+
+def __getattr__(name: str) -> Any:
+    """``LazyAutomaton`` is imported on first use (``mitlc compile`` does not need it)."""
+    if name == "LazyAutomaton":
+        from mitlc.automata.lazy import LazyAutomaton
+
+        return LazyAutomaton
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True, slots=True)
