@@ -10,9 +10,9 @@ when a caller asks for it, or when deciding a state's verdict needs it, and memo
 Two facts make that possible and exact.
 
 * **Letter classes.** The successor (and the marks) of a state depend on a letter only through
-  ``letter & reads(state)`` (:meth:`mitlc.automata.keys.Rules.reads`: the propositions its
-  obligations read now), so a state has at most ``2^|reads|`` distinct transitions, one per
-  sub-mask of ``reads``; a task over twelve rooms typically reads one or two at a time.
+  its class: the terminal of the state's decision diagram (:meth:`Rules.transitions`, over
+  the propositions its obligations read now, :meth:`mitlc.automata.keys.Rules.reads`), so a
+  state has one transition per class; a task over twelve rooms typically has two or three.
 * **Liveness on the class graph.** The eager translation merges every state with no accepting
   run (over all letters) into the rejecting sink, with the rule of
   :func:`mitlc.automata.graph.live_states`: a state is live iff it reaches an SCC whose internal
@@ -50,8 +50,8 @@ _NO_NODE = -1
 
 @dataclass(slots=True)
 class _Frame:
-    """A node of the search's depth-first path and its next edge: the letter class ``sub``
-    (counting down from the node's mask; -1 when done), then the jump ``jump``."""
+    """A node of the search's depth-first path and its next edge: its transition ``sub``
+    (counting down from its last one; -1 when done), then the jump ``jump``."""
 
     node: int
     sub: int
@@ -76,6 +76,10 @@ class _Graph:
     ``l & masks[n] == sub``, for the classes asked about so far."""
     jumps: list[tuple[int, ...] | None] = field(default_factory=list)
     """The jump targets of a node, once asked about."""
+    diagrams: list[int | None] = field(default_factory=list)
+    """A node's transitions as a decision diagram (:meth:`Rules.transitions`), once needed."""
+    outs: list[list[tuple[int, int]] | None] = field(default_factory=list)
+    """A node's distinct transitions (target node, marks), by least letter, once needed."""
 
     def node(self, key: Key) -> int:
         """The node of ``key``, made on first sight (the sink and ``true``-like states decided
@@ -91,6 +95,25 @@ class _Graph:
             self.masks.append(self.rules.reads(key))
             self.rows.append({})
             self.jumps.append(None)
+            self.diagrams.append(None)
+            self.outs.append(None)
+        return found
+
+    def transitions(self, node: int) -> int:
+        """The decision diagram of the transitions of ``node``."""
+        found = self.diagrams[node]
+        if found is None:
+            found = self.diagrams[node] = self.rules.transitions(self.keys[node])
+        return found
+
+    def out_edges(self, node: int) -> list[tuple[int, int]]:
+        """The distinct transitions of ``node`` (target node, marks): one per class of
+        letters it tells apart, by least letter."""
+        found = self.outs[node]
+        if found is None:
+            self.deadline.check()
+            classes = self.rules.progression.diagrams.classes(self.transitions(node))
+            found = self.outs[node] = [(self.node(key), marks) for (key, marks), _ in classes]
         return found
 
     def edge(self, node: int, sub: int) -> tuple[int, int]:
@@ -99,7 +122,8 @@ class _Graph:
         found = row.get(sub)
         if found is None:
             self.deadline.check()
-            target, marks = self.rules.successor(self.keys[node], sub)
+            diagrams = self.rules.progression.diagrams
+            target, marks = diagrams.evaluate(self.transitions(node), sub)
             found = row[sub] = (self.node(target), marks)
         return found
 
@@ -126,14 +150,15 @@ class _Graph:
         partial SCC on a stack of roots) from ``start`` over undecided nodes, stopping at the
         first proof of liveness; every node it visits is decided when it returns.
 
-        Letter classes are tried from the largest down (all read propositions true first: the
-        letter that meets pending obligations soonest), then the jumps. A cycle closed by an
+        Transitions are tried from the last class down (by least letter: the class with the
+        most read propositions true first, which meets pending obligations soonest), then the
+        jumps. A cycle closed by an
         edge back into the depth-first path merges the partial SCCs it spans; when their
         internal edges carry every set (zero sets: any cycle), that SCC is accepting. Jumps
         lead from the initial to the accepting component and never back, so every cycle
         holds a letter transition, as :func:`mitlc.automata.graph.live_states` requires."""
         live, number, all_sets = self.live, {start: 0}, (1 << self.rules.num_sets) - 1
-        stack, work = [start], [_Frame(start, self.masks[start])]
+        stack, work = [start], [_Frame(start, len(self.out_edges(start)) - 1)]
         # [number, marks, entry marks] of each partial SCC, by depth: its root's number, the
         # marks of its internal edges, and those of the tree edge into its root
         roots = [[0, 0, 0]]
@@ -159,7 +184,7 @@ class _Graph:
                 number[target] = len(number)
                 stack.append(target)
                 roots.append([number[target], 0, marks])
-                work.append(_Frame(target, self.masks[target]))
+                work.append(_Frame(target, len(self.out_edges(target)) - 1))
                 continue
             merged = marks  # target is on the stack: a cycle
             while roots[-1][0] > number[target]:
@@ -173,9 +198,8 @@ class _Graph:
     def _next_edge(self, frame: _Frame) -> tuple[int, int] | None:
         """The next edge of ``frame`` (target, marks), or ``None`` when it has no more."""
         if frame.sub >= 0:
-            sub = frame.sub
-            frame.sub = (sub - 1) & self.masks[frame.node] if sub else -1
-            return self.edge(frame.node, sub)
+            frame.sub -= 1
+            return self.out_edges(frame.node)[frame.sub + 1]
         jumps = self.jump_targets(frame.node)
         if frame.jump < len(jumps):
             frame.jump += 1
