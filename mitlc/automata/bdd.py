@@ -37,16 +37,24 @@ class Diagrams:
         self.low: list[int] = []
         self.high: list[int] = []
         self.values: list[Any] = []
-        self._leaves: dict[tuple[type, Hashable], int] = {}
-        self._inner: dict[tuple[int, int, int], int] = {}
-        self._memo: dict[tuple[Hashable, int, int], int] = {}
+        self._leaves: dict[Hashable, int] = {}
+        self._inner: dict[int, int] = {}
+        self._memos: dict[Hashable, dict[int, int]] = {}
 
     def leaf(self, value: Hashable) -> int:
-        """The terminal holding ``value``."""
-        key = (type(value), value)
-        found = self._leaves.get(key)
+        """The terminal holding ``value`` (values are told apart by equality: do not mix
+        ``True`` and ``1`` in one store)."""
+        found = self._leaves.get(value)
         if found is None:
-            found = self._leaves[key] = self._add(LEAF, -1, -1, value)
+            found = self._leaves[value] = self._add(LEAF, -1, -1, value)
+        return found
+
+    def _memo(self, name: Hashable) -> dict[int, int]:
+        """The memo of one operation: ``f << 32 | g`` -> result (int keys: nothing for the
+        cyclic garbage collector to scan)."""
+        found = self._memos.get(name)
+        if found is None:
+            found = self._memos[name] = {}
         return found
 
     def node(self, var: int, low: int, high: int) -> int:
@@ -54,7 +62,7 @@ class Diagrams:
         (reduced: a test whose branches agree is its branch)."""
         if low == high:
             return low
-        key = (var, low, high)
+        key = (var << 32 | low) << 32 | high  # an int: nothing for the collector to scan
         found = self._inner.get(key)
         if found is None:
             found = self._inner[key] = self._add(var, low, high, None)
@@ -74,10 +82,10 @@ class Diagrams:
     def apply(self, name: Hashable, op: Callable[[Any, Any], Hashable], f: int, g: int) -> int:
         """The diagram of ``op(f(l), g(l))`` on every letter ``l``; ``name`` identifies ``op``
         for the memo (the same name must always mean the same operation)."""
-        var, low, high, memo = self.var, self.low, self.high, self._memo
+        var, low, high, memo = self.var, self.low, self.high, self._memo(name)
 
         def go(f: int, g: int) -> int:
-            key = (name, f, g)
+            key = f << 32 | g
             found = memo.get(key)
             if found is not None:
                 return found
@@ -96,17 +104,16 @@ class Diagrams:
 
     def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:
         """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo."""
-        var, memo = self.var, self._memo
+        var, memo = self.var, self._memo(("map", name))
 
         def go(f: int) -> int:
-            key = (name, f, -1)
-            found = memo.get(key)
+            found = memo.get(f)
             if found is None:
                 if var[f] == LEAF:
                     found = self.leaf(op(self.values[f]))
                 else:
                     found = self.node(var[f], go(self.low[f]), go(self.high[f]))
-                memo[key] = found
+                memo[f] = found
             return found
 
         return go(f)

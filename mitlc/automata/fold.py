@@ -120,6 +120,12 @@ class _Folder:
         default_factory=dict
     )
     """Per (location, valuation): its state's row and the outcome of each of its transitions."""
+    diagrams: Diagrams = field(default_factory=Diagrams)
+    """The rows' shapes (terminal ``k``: transition ``k``) and their combinations, for edges."""
+    shapes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = field(default_factory=dict)
+    """A row's shape ``(root, tests)`` -> its node in :attr:`diagrams`."""
+    labels: dict[tuple[tuple[int, int], ...], Letters] = field(default_factory=dict)
+    """The letters of a union of cubes, made once."""
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
         default_factory=dict
     )
@@ -348,19 +354,21 @@ def _edges(
     (``sink``: the behaviour past every deadline); then the classes with the same guard and
     outcome share an edge, labelled with the union of their letters."""
     num_sets = folder.translation.automaton.num_sets
-    diagrams = Diagrams()
+    diagrams, shapes = folder.diagrams, folder.shapes
     points = [tuple(value for _, value in v) for v in folder.covered[loc]]
     # The classes depend on the shape of each row's diagram (which letters take which of its
     # transitions), not on where the transitions go: states of one location share shapes.
     together = diagrams.leaf(())
-    shapes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
+    used: dict[int, int] = {}  # shape node -> its position in a class
     which = []  # per point: its shape's position in a class, and its outcomes
     for v in folder.covered[loc]:
         row, outcomes = folder.behaviour[(loc, v)]
-        index = shapes.get((row.root, row.tests))
+        node = shapes.get((row.root, row.tests))
+        if node is None:
+            node = shapes[(row.root, row.tests)] = row.into(diagrams, lambda k: k)
+        index = used.get(node)
         if index is None:
-            index = shapes[(row.root, row.tests)] = len(shapes)
-            node = row.into(diagrams, lambda k: k)
+            index = used[node] = len(used)
             together = diagrams.apply("tuple", lambda t, k: (*t, k), together, node)
         which.append((index, outcomes))
     grouped: dict[tuple[Guard, Outcome], set[tuple[int, ...]]] = {}
@@ -379,7 +387,10 @@ def _edges(
     edges = []
     for (guard, (t_key, resets, marks)), classes in grouped.items():
         acc = tuple(k for k in range(num_sets) if marks >> k & 1)
-        label = Letters.of_cubes((care, value) for care, value, each in paths if each in classes)
+        cubes = tuple((care, value) for care, value, each in paths if each in classes)
+        label = folder.labels.get(cubes)
+        if label is None:  # locations of one automaton share most labels
+            label = folder.labels[cubes] = Letters.of_cubes(cubes)
         edges.append(Edge(loc, folder.locations[t_key], label, guard, resets, acc))
     return edges
 
