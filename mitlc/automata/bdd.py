@@ -79,44 +79,47 @@ class Diagrams:
         """The value of a terminal."""
         return self.values[f]
 
+    # The recursions below are methods, not nested functions: a nested recursive function is a
+    # reference cycle, left for the cyclic garbage collector on every call.
+
     def apply(self, name: Hashable, op: Callable[[Any, Any], Hashable], f: int, g: int) -> int:
         """The diagram of ``op(f(l), g(l))`` on every letter ``l``; ``name`` identifies ``op``
         for the memo (the same name must always mean the same operation)."""
-        var, low, high, memo = self.var, self.low, self.high, self._memo(name)
+        return self._apply(self._memo(name), op, f, g)
 
-        def go(f: int, g: int) -> int:
-            key = f << 32 | g
-            found = memo.get(key)
-            if found is not None:
-                return found
-            vf, vg = var[f], var[g]
-            if vf == LEAF and vg == LEAF:
-                found = self.leaf(op(self.values[f], self.values[g]))
-            else:
-                top = vf if vf > vg else vg
-                f0, f1 = (low[f], high[f]) if vf == top else (f, f)
-                g0, g1 = (low[g], high[g]) if vg == top else (g, g)
-                found = self.node(top, go(f0, g0), go(f1, g1))
-            memo[key] = found
+    def _apply(
+        self, memo: dict[int, int], op: Callable[[Any, Any], Hashable], f: int, g: int
+    ) -> int:
+        key = f << 32 | g
+        found = memo.get(key)
+        if found is not None:
             return found
-
-        return go(f, g)
+        var = self.var
+        vf, vg = var[f], var[g]
+        if vf == LEAF and vg == LEAF:
+            found = self.leaf(op(self.values[f], self.values[g]))
+        else:
+            top = vf if vf > vg else vg
+            f0, f1 = (self.low[f], self.high[f]) if vf == top else (f, f)
+            g0, g1 = (self.low[g], self.high[g]) if vg == top else (g, g)
+            found = self.node(top, self._apply(memo, op, f0, g0), self._apply(memo, op, f1, g1))
+        memo[key] = found
+        return found
 
     def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:
         """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo."""
-        var, memo = self.var, self._memo(("map", name))
+        return self._map(self._memo(("map", name)), op, f)
 
-        def go(f: int) -> int:
-            found = memo.get(f)
-            if found is None:
-                if var[f] == LEAF:
-                    found = self.leaf(op(self.values[f]))
-                else:
-                    found = self.node(var[f], go(self.low[f]), go(self.high[f]))
-                memo[f] = found
-            return found
-
-        return go(f)
+    def _map(self, memo: dict[int, int], op: Callable[[Any], Hashable], f: int) -> int:
+        found = memo.get(f)
+        if found is None:
+            if self.var[f] == LEAF:
+                found = self.leaf(op(self.values[f]))
+            else:
+                low, high = self._map(memo, op, self.low[f]), self._map(memo, op, self.high[f])
+                found = self.node(self.var[f], low, high)
+            memo[f] = found
+        return found
 
     def evaluate(self, f: int, letter: int) -> Any:
         """The value of ``f`` on ``letter``."""
@@ -130,18 +133,17 @@ class Diagrams:
         var, low, high = self.var, self.low, self.high
         seen: set[int] = set()
         out: list[tuple[Any, int]] = []
-
-        def go(f: int, letter: int) -> None:
-            if f in seen:  # met before on a smaller letter, with all it leads to
-                return
-            seen.add(f)
-            if var[f] == LEAF:
-                out.append((self.values[f], letter))
-                return
-            go(low[f], letter)
-            go(high[f], letter | 1 << var[f])
-
-        go(f, 0)
+        stack = [(f, 0)]  # depth first, low branch first
+        while stack:
+            node, letter = stack.pop()
+            if node in seen:  # met before on a smaller letter, with all it leads to
+                continue
+            seen.add(node)
+            if var[node] == LEAF:
+                out.append((self.values[node], letter))
+                continue
+            stack.append((high[node], letter | 1 << var[node]))
+            stack.append((low[node], letter))
         return out
 
     def paths(self, f: int) -> Iterator[tuple[int, int, Any]]:

@@ -71,47 +71,28 @@ class Row:
     def export(diagrams: Diagrams, node: int, relabel: Callable[[Any], tuple[int, int]]) -> Row:
         """The row of ``node`` of ``diagrams``, its terminals relabelled ``(target, marks)``
         (terminals relabelled alike are merged, and the diagram kept reduced)."""
-        var, low, high = diagrams.var, diagrams.low, diagrams.high
         outcomes: dict[tuple[int, int], int] = {}
         tests: list[tuple[int, int, int]] = []
-        inner: dict[tuple[int, int, int], int] = {}
-        memo: dict[int, int] = {}
-
-        def go(f: int) -> int:  # low branch first: transitions by least letter
-            found = memo.get(f)
-            if found is not None:
-                return found
-            if var[f] == LEAF:
-                found = ~outcomes.setdefault(relabel(diagrams.values[f]), len(outcomes))
-            else:
-                lo, hi = go(low[f]), go(high[f])
-                key = (var[f], lo, hi)
-                found = lo if lo == hi else inner.get(key)
-                if found is None:
-                    found = inner[key] = len(tests)
-                    tests.append(key)
-            memo[f] = found
-            return found
-
-        root = go(node)
+        root = _export(diagrams, node, relabel, outcomes, tests, {}, {})
         return Row(root, tuple(tests), tuple(t for t, _ in outcomes), tuple(m for _, m in outcomes))
 
     def into(self, diagrams: Diagrams, value: Callable[[int], Any]) -> int:
         """This row as a node of ``diagrams``, transition ``k`` a terminal ``value(k)``."""
-        made: dict[int, int] = {}
+        return self._into(diagrams, value, self.root, {})
 
-        def go(c: int) -> int:
-            found = made.get(c)
-            if found is None:
-                if c < 0:
-                    found = diagrams.leaf(value(~c))
-                else:
-                    prop, low, high = self.tests[c]
-                    found = diagrams.node(prop, go(low), go(high))
-                made[c] = found
-            return found
-
-        return go(self.root)
+    def _into(
+        self, diagrams: Diagrams, value: Callable[[int], Any], c: int, made: dict[int, int]
+    ) -> int:
+        found = made.get(c)
+        if found is None:
+            if c < 0:
+                found = diagrams.leaf(value(~c))
+            else:
+                prop, low, high = self.tests[c]
+                low_node = self._into(diagrams, value, low, made)
+                found = diagrams.node(prop, low_node, self._into(diagrams, value, high, made))
+            made[c] = found
+        return found
 
     def successor(self, letter: int) -> tuple[int, int]:
         """``(target, marks)`` on ``letter``."""
@@ -143,6 +124,33 @@ class Row:
             (t, m, Letters.of_cubes(c))
             for t, m, c in zip(self.targets, self.marks, cubes, strict=True)
         ]
+
+
+def _export(
+    diagrams: Diagrams,
+    f: int,
+    relabel: Callable[[Any], tuple[int, int]],
+    outcomes: dict[tuple[int, int], int],
+    tests: list[tuple[int, int, int]],
+    inner: dict[tuple[int, int, int], int],
+    memo: dict[int, int],
+) -> int:
+    """:meth:`Row.export` of node ``f``, low branch first (transitions by least letter)."""
+    found = memo.get(f)
+    if found is not None:
+        return found
+    if diagrams.var[f] == LEAF:
+        found = ~outcomes.setdefault(relabel(diagrams.values[f]), len(outcomes))
+    else:
+        lo = _export(diagrams, diagrams.low[f], relabel, outcomes, tests, inner, memo)
+        hi = _export(diagrams, diagrams.high[f], relabel, outcomes, tests, inner, memo)
+        key = (diagrams.var[f], lo, hi)
+        found = lo if lo == hi else inner.get(key)
+        if found is None:
+            found = inner[key] = len(tests)
+            tests.append(key)
+    memo[f] = found
+    return found
 
 
 def _table_row(targets: Sequence[int], marks: Sequence[int], num_props: int) -> Row:

@@ -356,23 +356,34 @@ def _edges(
     num_sets = folder.translation.automaton.num_sets
     diagrams, shapes = folder.diagrams, folder.shapes
     points = [tuple(value for _, value in v) for v in folder.covered[loc]]
+    classes: list[tuple[int, ...]]
+    paths: list[tuple[int, int, tuple[int, ...]]]
     # The classes depend on the shape of each row's diagram (which letters take which of its
     # transitions), not on where the transitions go: states of one location share shapes.
-    together = diagrams.leaf(())
-    used: dict[int, int] = {}  # shape node -> its position in a class
-    which = []  # per point: its shape's position in a class, and its outcomes
-    for v in folder.covered[loc]:
-        row, outcomes = folder.behaviour[(loc, v)]
-        node = shapes.get((row.root, row.tests))
-        if node is None:
-            node = shapes[(row.root, row.tests)] = row.into(diagrams, lambda k: k)
-        index = used.get(node)
-        if index is None:
-            index = used[node] = len(used)
-            together = diagrams.apply("tuple", lambda t, k: (*t, k), together, node)
-        which.append((index, outcomes))
+    behaviours = [folder.behaviour[(loc, v)] for v in folder.covered[loc]]
+    first = behaviours[0][0]
+    if all(row.root == first.root and row.tests == first.tests for row, _ in behaviours):
+        # one shape (an untimed location, most often): its transitions are the classes
+        which = [(0, outcomes) for _, outcomes in behaviours]
+        classes = [(k,) for k in range(len(first.targets))]
+        paths = [(care, value, (k,)) for care, value, k in first.paths()]
+    else:
+        together = diagrams.leaf(())
+        used: dict[int, int] = {}  # shape node -> its position in a class
+        which = []  # per point: its shape's position in a class, and its outcomes
+        for row, outcomes in behaviours:
+            node = shapes.get((row.root, row.tests))
+            if node is None:
+                node = shapes[(row.root, row.tests)] = row.into(diagrams, lambda k: k)
+            index = used.get(node)
+            if index is None:
+                index = used[node] = len(used)
+                together = diagrams.apply("tuple", lambda t, k: (*t, k), together, node)
+            which.append((index, outcomes))
+        classes = [each for each, _ in diagrams.classes(together)]
+        paths = list(diagrams.paths(together))
     grouped: dict[tuple[Guard, Outcome], set[tuple[int, ...]]] = {}
-    for each, _ in diagrams.classes(together):
+    for each in classes:
         folder.deadline.check()
         behaviour = {
             point: outcomes[each[index]]
@@ -383,11 +394,10 @@ def _edges(
                 (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)
             )
             grouped.setdefault((guard, outcome), set()).add(each)
-    paths = list(diagrams.paths(together))
     edges = []
-    for (guard, (t_key, resets, marks)), classes in grouped.items():
+    for (guard, (t_key, resets, marks)), members in grouped.items():
         acc = tuple(k for k in range(num_sets) if marks >> k & 1)
-        cubes = tuple((care, value) for care, value, each in paths if each in classes)
+        cubes = tuple((care, value) for care, value, each in paths if each in members)
         label = folder.labels.get(cubes)
         if label is None:  # locations of one automaton share most labels
             label = folder.labels[cubes] = Letters.of_cubes(cubes)
