@@ -13,7 +13,10 @@ from functools import cache
 
 from lark.grammar import NonTerminal, Rule, Symbol, Terminal
 
-from mitlc.syntax.grammar import lalr_parser
+from mitlc.syntax.grammar import build_parser
+
+BUILT = build_parser()
+"""The parser built from the grammar (with its grammar object, which a loaded one lacks)."""
 
 # Every spelling the grammar accepts for each terminal (checked against the terminal's regex).
 SPELLINGS: dict[str, tuple[str, ...]] = {
@@ -50,7 +53,7 @@ SHORTEST_SHARE = 0.3  # how often a nonterminal takes its shortest expansion, to
 @cache
 def rules_by_origin() -> dict[str, tuple[Rule, ...]]:
     table: dict[str, list[Rule]] = defaultdict(list)
-    for rule in lalr_parser().rules:
+    for rule in BUILT.rules:
         table[rule.origin.name].append(rule)
     return {name: tuple(rules) for name, rules in table.items()}
 
@@ -119,7 +122,7 @@ def _rule_height(rule: Rule) -> int:
 
 def check_spellings() -> None:
     """Every terminal of the grammar has spellings, and each spelling matches its terminal."""
-    for terminal in lalr_parser().terminals:
+    for terminal in BUILT.terminals:
         if terminal.name in ("WS", "COMMENT"):
             continue
         assert terminal.name in SPELLINGS, f"no spellings for terminal {terminal.name}"

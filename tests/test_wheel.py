@@ -31,6 +31,7 @@ def test_wheel_carries_the_grammar_and_parses(tmp_path: Path) -> None:
     with zipfile.ZipFile(wheel) as archive:
         names = archive.namelist()
         assert "mitlc/grammars/mitl.lark" in names
+        assert "mitlc/grammars/mitl.lalr.json" in names
         packaged = archive.read("mitlc/grammars/mitl.lark")
         archive.extractall(tmp_path / "site")
     assert packaged == (ROOT / "grammars" / "mitl.lark").read_bytes()
