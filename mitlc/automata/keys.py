@@ -11,9 +11,9 @@ letter with its acceptance marks, the epsilon jumps of a key, the propositions a
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Literal, NamedTuple, TypeAlias
+from typing import Any, Literal, NamedTuple, TypeAlias
 
 from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
 from mitlc.automata.digital import DigitalState, Verdict
@@ -54,6 +54,14 @@ class Key(NamedTuple):
             (k, seed, p) for (k, seed), p in zip(self.seeds, self.forms[1:], strict=True)
         )
         return Guess(self.forms[0], tokens)
+
+
+class Transitions(NamedTuple):
+    """A key's transitions (:meth:`Rules.transitions`): a diagram and the meaning of its
+    terminals."""
+
+    diagram: int
+    outcome: Callable[[Any], tuple[Key, int]]
 
 
 SINK = Key("sink")
@@ -160,21 +168,24 @@ class Rules:
             mask |= self.progression.reads(form)
         return mask
 
-    def transitions(self, key: Key) -> int:
+    def transitions(self, key: Key) -> Transitions:
         """The successor of ``key`` and the marks on every letter: a decision diagram (in
-        ``progression.diagrams``) whose terminals are ``(successor key, marks)``, one per class
-        of letters the key tells apart. It is :meth:`successor` read once per class: the
-        classes are those of the progressions of :meth:`read_forms`, taken together."""
+        ``progression.diagrams``) with one terminal per class of letters the key tells apart,
+        and what each terminal means, ``(successor key, marks)``. It is :meth:`successor` read
+        once per class: the classes are those of the progressions of :meth:`read_forms`, taken
+        together (for an initial state, its obligation's progression itself)."""
         d = self.progression.diagrams
         if key.kind == "initial":
-            split = self.progression.split(key.forms[0])
-            return d.map("initial", lambda after: (self.initial_key(after), 0), split)
+            initial_key = self.initial_key
+            return Transitions(
+                self.progression.split(key.forms[0]), lambda after: (initial_key(after), 0)
+            )
         together = d.leaf(())
         for form in self.read_forms(key):
             split = self.progression.split(form)
             together = d.apply("tuple", lambda t, v: (*t, v), together, split)
         outcomes = {value: self.successor(key, least) for value, least in d.classes(together)}
-        return d.map(("successor", key), outcomes.__getitem__, together)
+        return Transitions(together, outcomes.__getitem__)
 
     def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
         """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`."""

@@ -38,7 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mitlc.automata.digital import Component, DigitalState, Verdict
-from mitlc.automata.keys import SINK, Key, Rules
+from mitlc.automata.keys import SINK, Key, Rules, Transitions
 from mitlc.automata.ldba import state_limit_error
 from mitlc.limits import Deadline, collector_paused
 from mitlc.syntax import ast, to_text
@@ -76,8 +76,8 @@ class _Graph:
     ``l & masks[n] == sub``, for the classes asked about so far."""
     jumps: list[tuple[int, ...] | None] = field(default_factory=list)
     """The jump targets of a node, once asked about."""
-    diagrams: list[int | None] = field(default_factory=list)
-    """A node's transitions as a decision diagram (:meth:`Rules.transitions`), once needed."""
+    diagrams: list[Transitions | None] = field(default_factory=list)
+    """A node's transitions (:meth:`Rules.transitions`), once needed."""
     outs: list[list[tuple[int, int]] | None] = field(default_factory=list)
     """A node's distinct transitions (target node, marks), by least letter, once needed."""
 
@@ -99,8 +99,8 @@ class _Graph:
             self.outs.append(None)
         return found
 
-    def transitions(self, node: int) -> int:
-        """The decision diagram of the transitions of ``node``."""
+    def transitions(self, node: int) -> Transitions:
+        """The transitions of ``node`` (a decision diagram and its terminals' meaning)."""
         found = self.diagrams[node]
         if found is None:
             found = self.diagrams[node] = self.rules.transitions(self.keys[node])
@@ -112,8 +112,12 @@ class _Graph:
         found = self.outs[node]
         if found is None:
             self.deadline.check()
-            classes = self.rules.progression.diagrams.classes(self.transitions(node))
-            found = self.outs[node] = [(self.node(key), marks) for (key, marks), _ in classes]
+            transitions = self.transitions(node)
+            classes = self.rules.progression.diagrams.classes(transitions.diagram)
+            found = self.outs[node] = []
+            for value, _ in classes:
+                key, marks = transitions.outcome(value)
+                found.append((self.node(key), marks))
         return found
 
     def edge(self, node: int, sub: int) -> tuple[int, int]:
@@ -123,7 +127,8 @@ class _Graph:
         if found is None:
             self.deadline.check()
             diagrams = self.rules.progression.diagrams
-            target, marks = diagrams.evaluate(self.transitions(node), sub)
+            transitions = self.transitions(node)
+            target, marks = transitions.outcome(diagrams.evaluate(transitions.diagram, sub))
             found = row[sub] = (self.node(target), marks)
         return found
 

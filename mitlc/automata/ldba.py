@@ -28,10 +28,11 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
 from mitlc.automata.graph import live_states
-from mitlc.automata.keys import SINK, Key, Rules
+from mitlc.automata.keys import SINK, Key, Rules, Transitions
 from mitlc.automata.keys import StateKind as StateKind
 from mitlc.automata.terms import TermStore
 from mitlc.errors import MitlcError
@@ -65,8 +66,8 @@ class _Explored:
 
     keys: list[Key] = field(default_factory=list)
     index: dict[Key, int] = field(default_factory=dict)
-    transitions: list[int] = field(default_factory=list)
-    """Per state: its :meth:`Rules.transitions` diagram."""
+    transitions: list[Transitions] = field(default_factory=list)
+    """Per state: its :meth:`Rules.transitions`."""
     delta: list[list[int]] = field(default_factory=list)
     """Per state: the states its transitions lead to, by least letter."""
     marks: list[list[int]] = field(default_factory=list)
@@ -157,13 +158,14 @@ class _Builder:
         while position < len(keys):
             deadline.check_now()
             key = keys[position]
-            node = self.rules.transitions(key)
+            transitions = self.rules.transitions(key)
             targets, marks = [], []
-            for (target, mark), _ in classes(node):
+            for value, _ in classes(transitions.diagram):
+                target, mark = transitions.outcome(value)
                 found = index.get(target)
                 targets.append(explored.id(target, limit) if found is None else found)
                 marks.append(mark)
-            explored.transitions.append(node)
+            explored.transitions.append(transitions)
             explored.delta.append(targets)
             explored.marks.append(marks)
             for jump in self.rules.jumps(key, deadline):
@@ -190,10 +192,14 @@ class _Builder:
             remap[old] = new
         diagrams, index = rules.progression.diagrams, explored.index
 
-        def relabel(outcome: tuple[Key, int]) -> tuple[int, int]:
-            return remap[index[outcome[0]]], outcome[1]
+        def row(transitions: Transitions) -> Row:
+            def relabel(value: Any) -> tuple[int, int]:
+                target, marks = transitions.outcome(value)
+                return remap[index[target]], marks
 
-        rows = [Row.export(diagrams, explored.transitions[old], relabel) for old in order]
+            return Row.export(diagrams, transitions.diagram, relabel)
+
+        rows = [row(explored.transitions[old]) for old in order]
         states = []
         for old in order:
             self.deadline.check()
