@@ -9,7 +9,7 @@ import pytest
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState
 from mitlc.automata.keys import SINK, Key, Rules
-from mitlc.automata.labels import Letters, label_text, submasks
+from mitlc.automata.labels import Letters, cube_text, label_text, minimal_cover, submasks
 from mitlc.automata.ldba import StateLimitError, Translation, translate_terms
 from mitlc.syntax import ast, parse
 from tests.explicit_oracle import explicit_rules
@@ -138,8 +138,13 @@ def test_letter_sets_are_canonical_and_write_the_explicit_labels() -> None:
         mask = (1 << n) - 1
         letters = Letters.of(mask, wanted)
         assert set(letters.letters(n)) == wanted
-        assert letters.text(names[:n]) == label_text(wanted, names[:n])
-        assert letters.text(names[:n], "hoa") == label_text(wanted, names[:n], "hoa")
+        # the cover over the support is the minimal cover over every proposition
+        for style in ("spec", "hoa"):
+            whole = minimal_cover(wanted, n)
+            expected = " | ".join(cube_text(c, names[:n], style) for c in whole)
+            expected = expected or ("false" if style == "spec" else "f")
+            assert letters.text(names[:n], style) == expected
+            assert label_text(wanted, names[:n], style) == expected
         # canonical: the same set given over a larger support is the same value
         wider = Letters.of(mask | 1 << n, [m | x for m in wanted for x in (0, 1 << n)])
         assert wider == letters

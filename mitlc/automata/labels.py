@@ -150,7 +150,11 @@ class Letters:
     def text(
         self, propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
     ) -> str:
-        """The label: its cover in mitlc's syntax or HOA's (see :func:`label_text`)."""
+        """The label: its cover in mitlc's syntax (``a & !b | c``, ``true``, ``false``), which
+        :func:`mitlc.syntax.parse` reads back, or HOA's label syntax with proposition indices
+        (``0&!1 | 2``, ``t``, ``f``)."""
+        if style not in ("spec", "hoa"):
+            raise ValueError(f"unknown label style {style!r}")
         cover = self.cover()
         if not cover:
             return "false" if style == "spec" else "f"
@@ -333,14 +337,10 @@ def cube_text(
 def label_text(
     letters: Iterable[int], propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
 ) -> str:
-    """The minimal-cover label of a letter set over ``propositions``.
-
-    ``spec``: mitlc's syntax (``a & !b | c``, ``true``, ``false``), which :func:`mitlc.syntax.parse`
-    reads back. ``hoa``: HOA's label syntax with proposition indices (``0&!1 | 2``, ``t``, ``f``).
-    """
-    if style not in ("spec", "hoa"):
-        raise ValueError(f"unknown label style {style!r}")
-    cover = minimal_cover(letters, len(propositions))
-    if not cover:
-        return "false" if style == "spec" else "f"
-    return " | ".join(cube_text(cube, propositions, style) for cube in cover)
+    """The label of a letter set given letter by letter over ``propositions``: the text of its
+    :class:`Letters` (:meth:`Letters.text`)."""
+    full = (1 << len(propositions)) - 1
+    wanted = set(letters)
+    if any(m < 0 or m > full for m in wanted):
+        raise ValueError(f"a letter is out of range for {len(propositions)} propositions")
+    return Letters.of(full, wanted).text(propositions, style)

@@ -107,7 +107,7 @@ class Progression:
         union = d.leaf(frozenset())
         for cube in cubes:
             union = d.apply("union", _union(store), union, self._conjoin(cube))
-        return d.map("absorb", lambda found: _absorbed(store, found), union)
+        return d.map("absorb", store.union_of_cubes, union)
 
     def _conjoin(self, cube: frozenset[int]) -> int:
         store, d = self.store, self.diagrams
@@ -182,12 +182,3 @@ def _union(store: TermStore) -> Callable[[frozenset[Cube], int], frozenset[Cube]
         return found | store.forms[conjunction]
 
     return union
-
-
-def _absorbed(store: TermStore, found: frozenset[Cube]) -> int:
-    """What :meth:`TermStore.substitute` makes of the union of many cubes' conjunctions."""
-    if frozenset() in found:
-        return store.true
-    if len(found) == 1:
-        return store.form(found)
-    return store.form(store._absorb(found))

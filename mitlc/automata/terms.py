@@ -209,6 +209,13 @@ class TermStore:
             if conjunction == self.true:
                 return self.true
             found |= self.forms[conjunction]
+        return self.union_of_cubes(found)
+
+    def union_of_cubes(self, found: set[Cube] | frozenset[Cube]) -> int:
+        """The disjunction of a set of cubes: ``true`` when it holds the empty cube, else the
+        form of its minimal cubes."""
+        if frozenset() in found:
+            return self.true
         if len(found) == 1:
             return self.form(frozenset(found))
         return self.form(self._absorb(found))
