@@ -20,6 +20,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -65,22 +66,22 @@ def run_mitlc(text: str) -> dict[str, object]:
     }
 
 
-def run_spot(text: str, timeout: float) -> dict[str, object] | None:
-    if unrolled_size(parse(text)) > SPOT_MAX_TEXT:
-        return None
+def run_child(argv: list[str], stdin: str, timeout: float) -> dict[str, Any] | None:
+    """The JSON a child process prints for ``stdin``; ``None`` when killed at ``timeout``."""
     try:
         proc = subprocess.run(
-            [sys.executable, "-c", SPOT_CHILD],
-            input=to_spot(parse(text)),
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            check=True,
+            argv, input=stdin, capture_output=True, text=True, timeout=timeout, check=True
         )
     except subprocess.TimeoutExpired:
         return None
-    result: dict[str, object] = json.loads(proc.stdout)
+    result: dict[str, Any] = json.loads(proc.stdout)
     return result
+
+
+def run_spot(text: str, timeout: float) -> dict[str, Any] | None:
+    if unrolled_size(parse(text)) > SPOT_MAX_TEXT:
+        return None
+    return run_child([sys.executable, "-c", SPOT_CHILD], to_spot(parse(text)), timeout)
 
 
 def _cell(value: object, fmt: str = "{}") -> str:

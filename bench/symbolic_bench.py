@@ -27,13 +27,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from compile_bench import run_child
 
 from mitlc.automata import compile_formula
 from mitlc.syntax import ast, parse
@@ -150,19 +151,7 @@ def spot_child() -> None:
 
 
 def run_spot(text: str, timeout: float) -> dict[str, Any] | None:
-    try:
-        proc = subprocess.run(
-            [sys.executable, __file__, "--spot-child"],
-            input=text,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            check=True,
-        )
-    except subprocess.TimeoutExpired:
-        return None
-    result: dict[str, Any] = json.loads(proc.stdout)
-    return result
+    return run_child([sys.executable, __file__, "--spot-child"], text, timeout)
 
 
 def run_mitlc(text: str, repeats: int) -> dict[str, Any]:
