@@ -7,7 +7,8 @@ import random
 
 import pytest
 
-from mitlc.automata.digital import DigitalAutomaton, DigitalState
+from mitlc.automata.classes import Shapes
+from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row, _table_row
 from mitlc.automata.keys import SINK, Key, Rules
 from mitlc.automata.labels import Letters, cube_text, label_text, minimal_cover, submasks
 from mitlc.automata.ldba import StateLimitError, Translation, translate_terms
@@ -159,3 +160,32 @@ def test_keys_of_the_oracle_and_the_translation_compare() -> None:
     rules = explicit_rules(formula, translation)
     assert rules.start() == translation.keys[translation.automaton.initial]
     assert isinstance(rules.start(), Key)
+
+
+def _random_row(rng: random.Random, num_props: int) -> Row:
+    """A row over ``num_props`` propositions with a few transitions, reading some of them."""
+    reads = rng.randrange(1 << num_props)
+    outcomes = [(rng.randrange(3), 0) for _ in range(1 << num_props)]
+    targets = [outcomes[letter & reads][0] for letter in range(1 << num_props)]
+    return _table_row(targets, [0] * len(targets), num_props)
+
+
+@pytest.mark.parametrize("num_props", [1, 3, 4, 6])
+def test_classes_of_rows_taken_together_are_those_of_every_letter(num_props: int) -> None:
+    """``Shapes.classes`` (one shape, letter by letter, or by diagrams) against the tuples of
+    transitions read letter by letter: the same classes, by least letter, with their letters."""
+    rng = random.Random(num_props)
+    shapes = Shapes()
+    for _ in range(60):
+        rows = [_random_row(rng, num_props) for _ in range(rng.randint(1, 4))]
+        rows += rng.sample(rows, rng.randint(0, len(rows)))  # some shapes twice
+        found = shapes.classes(rows)
+        expected: dict[tuple[int, ...], list[int]] = {}
+        for letter in range(1 << num_props):
+            expected.setdefault(tuple(row.transition(letter) for row in rows), []).append(letter)
+        assert len(found.transitions) == len(expected)
+        for each, cubes, (transitions, letters) in zip(
+            found.transitions, found.cubes, expected.items(), strict=True
+        ):
+            assert [each[p] for p in found.position] == list(transitions)
+            assert Letters.of_cubes(cubes).letters(num_props) == letters

@@ -85,6 +85,8 @@ class Diagrams:
     def apply(self, name: Hashable, op: Callable[[Any, Any], Hashable], f: int, g: int) -> int:
         """The diagram of ``op(f(l), g(l))`` on every letter ``l``; ``name`` identifies ``op``
         for the memo (the same name must always mean the same operation)."""
+        if self.var[f] == LEAF and self.var[g] == LEAF:
+            return self.leaf(op(self.values[f], self.values[g]))
         return self._apply(self._memo(name), op, f, g)
 
     def _apply(
@@ -108,6 +110,8 @@ class Diagrams:
 
     def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:
         """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo."""
+        if self.var[f] == LEAF:
+            return self.leaf(op(self.values[f]))
         return self._map(self._memo(("map", name)), op, f)
 
     def _map(self, memo: dict[int, int], op: Callable[[Any], Hashable], f: int) -> int:

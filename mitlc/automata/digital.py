@@ -53,14 +53,14 @@ class Row:
     tests: tuple[tuple[int, int, int], ...]
     targets: tuple[int, ...]
     marks: tuple[int, ...]
-    reads: int = field(init=False, compare=False)
-    """The propositions the state reads (those its diagram tests)."""
 
-    def __post_init__(self) -> None:
+    @property
+    def reads(self) -> int:
+        """The propositions the state reads (those its diagram tests)."""
         reads = 0
         for prop, _, _ in self.tests:
             reads |= 1 << prop
-        object.__setattr__(self, "reads", reads)
+        return reads
 
     @staticmethod
     def constant(target: int, marks: int = 0) -> Row:
@@ -71,10 +71,23 @@ class Row:
     def export(diagrams: Diagrams, node: int, relabel: Callable[[Any], tuple[int, int]]) -> Row:
         """The row of ``node`` of ``diagrams``, its terminals relabelled ``(target, marks)``
         (terminals relabelled alike are merged, and the diagram kept reduced)."""
+        if diagrams.var[node] == LEAF:
+            return Row.constant(*relabel(diagrams.values[node]))
         outcomes: dict[tuple[int, int], int] = {}
         tests: list[tuple[int, int, int]] = []
-        root = _export(diagrams, node, relabel, outcomes, tests, {}, {})
-        return Row(root, tuple(tests), tuple(t for t, _ in outcomes), tuple(m for _, m in outcomes))
+        root = _export(diagrams, node, relabel, outcomes, tests)
+        targets, marks = zip(*outcomes, strict=True)
+        return Row(root, tuple(tests), targets, marks)
+
+    def renumbered(self, state: Sequence[int]) -> Row:
+        """This row with each target ``t`` renamed ``state[t]`` (transitions that come to
+        agree are merged, and the diagram kept reduced)."""
+        targets = tuple(state[t] for t in self.targets)
+        if len(set(zip(targets, self.marks, strict=True))) == len(targets):
+            return Row(self.root, self.tests, targets, self.marks)
+        diagrams = Diagrams()  # rare: dead states merged into the sink
+        node = self.into(diagrams, lambda k: (targets[k], self.marks[k]))
+        return Row.export(diagrams, node, lambda outcome: outcome)
 
     def into(self, diagrams: Diagrams, value: Callable[[int], Any]) -> int:
         """This row as a node of ``diagrams``, transition ``k`` a terminal ``value(k)``."""
@@ -94,13 +107,18 @@ class Row:
             made[c] = found
         return found
 
-    def successor(self, letter: int) -> tuple[int, int]:
-        """``(target, marks)`` on ``letter``."""
+    def transition(self, letter: int) -> int:
+        """The index of the transition taken on ``letter``."""
         c, tests = self.root, self.tests
         while c >= 0:
             prop, low, high = tests[c]
             c = high if letter >> prop & 1 else low
-        return self.targets[~c], self.marks[~c]
+        return ~c
+
+    def successor(self, letter: int) -> tuple[int, int]:
+        """``(target, marks)`` on ``letter``."""
+        k = self.transition(letter)
+        return self.targets[k], self.marks[k]
 
     def paths(self) -> list[tuple[int, int, int]]:
         """Every path ``(care, value, transition)``: disjoint cubes covering every letter."""
@@ -128,29 +146,46 @@ class Row:
 
 def _export(
     diagrams: Diagrams,
-    f: int,
+    node: int,
     relabel: Callable[[Any], tuple[int, int]],
     outcomes: dict[tuple[int, int], int],
     tests: list[tuple[int, int, int]],
-    inner: dict[tuple[int, int, int], int],
-    memo: dict[int, int],
 ) -> int:
-    """:meth:`Row.export` of node ``f``, low branch first (transitions by least letter)."""
-    found = memo.get(f)
-    if found is not None:
-        return found
-    if diagrams.var[f] == LEAF:
-        found = ~outcomes.setdefault(relabel(diagrams.values[f]), len(outcomes))
-    else:
-        lo = _export(diagrams, diagrams.low[f], relabel, outcomes, tests, inner, memo)
-        hi = _export(diagrams, diagrams.high[f], relabel, outcomes, tests, inner, memo)
-        key = (diagrams.var[f], lo, hi)
-        found = lo if lo == hi else inner.get(key)
-        if found is None:
-            found = inner[key] = len(tests)
-            tests.append(key)
-    memo[f] = found
-    return found
+    """:meth:`Row.export` of ``node``: a depth-first walk, low branch first (so transitions
+    are numbered by least letter), each test made once its branches are (``~f`` on the stack:
+    both branches of ``f`` are done)."""
+    var, low, high, values = diagrams.var, diagrams.low, diagrams.high, diagrams.values
+    lo, hi = low[node], high[node]
+    if var[lo] == LEAF and var[hi] == LEAF:  # one test (most rows): no walk
+        lo = ~outcomes.setdefault(relabel(values[lo]), 0)
+        hi = ~outcomes.setdefault(relabel(values[hi]), len(outcomes))
+        if lo == hi:
+            return lo
+        tests.append((var[node], lo, hi))
+        return 0
+    inner: dict[tuple[int, int, int], int] = {}
+    memo: dict[int, int] = {}
+    stack = [node]
+    while stack:
+        f = stack.pop()
+        if f < 0:
+            f = ~f
+            lo, hi = memo[low[f]], memo[high[f]]
+            if lo == hi:
+                memo[f] = lo
+                continue
+            key = (var[f], lo, hi)
+            found = inner.get(key)
+            if found is None:
+                found = inner[key] = len(tests)
+                tests.append(key)
+            memo[f] = found
+        elif f not in memo:
+            if var[f] == LEAF:
+                memo[f] = ~outcomes.setdefault(relabel(values[f]), len(outcomes))
+            else:
+                stack += (~f, high[f], low[f])
+    return memo[node]
 
 
 def _table_row(targets: Sequence[int], marks: Sequence[int], num_props: int) -> Row:

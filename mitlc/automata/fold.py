@@ -23,7 +23,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import NamedTuple, TypeAlias
 
-from mitlc.automata.bdd import Diagrams
+from mitlc.automata.classes import Shapes
 from mitlc.automata.digital import Row, Verdict
 from mitlc.automata.guards import partition
 from mitlc.automata.labels import Letters
@@ -120,10 +120,8 @@ class _Folder:
         default_factory=dict
     )
     """Per (location, valuation): its state's row and the outcome of each of its transitions."""
-    diagrams: Diagrams = field(default_factory=Diagrams)
-    """The rows' shapes (terminal ``k``: transition ``k``) and their combinations, for edges."""
-    shapes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = field(default_factory=dict)
-    """A row's shape ``(root, tests)`` -> its node in :attr:`diagrams`."""
+    shapes: Shapes = field(default_factory=Shapes)
+    """The rows' shapes, for the classes of letters of each location."""
     labels: dict[tuple[tuple[int, int], ...], Letters] = field(default_factory=dict)
     """The letters of a union of cubes, made once."""
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
@@ -349,55 +347,30 @@ def _build(folder: _Folder) -> Tldgba:
 def _edges(
     folder: _Folder, loc: int, clocks: list[int], bound: int, sink: Outcome | None
 ) -> list[Edge]:
-    """The edges of one location: per class of letters its states tell apart (the terminals
-    of their rows' diagrams taken together), a partition of its valuations into guards
-    (``sink``: the behaviour past every deadline); then the classes with the same guard and
-    outcome share an edge, labelled with the union of their letters."""
+    """The edges of one location: per class of letters its states tell apart together
+    (:meth:`Shapes.classes`), a partition of its valuations into guards (``sink``: the
+    behaviour past every deadline); then the classes with the same guard and outcome share an
+    edge, labelled with the union of their letters."""
     num_sets = folder.translation.automaton.num_sets
-    diagrams, shapes = folder.diagrams, folder.shapes
     points = [tuple(value for _, value in v) for v in folder.covered[loc]]
-    classes: list[tuple[int, ...]]
-    paths: list[tuple[int, int, tuple[int, ...]]]
-    # The classes depend on the shape of each row's diagram (which letters take which of its
-    # transitions), not on where the transitions go: states of one location share shapes.
     behaviours = [folder.behaviour[(loc, v)] for v in folder.covered[loc]]
-    first = behaviours[0][0]
-    if all(row.root == first.root and row.tests == first.tests for row, _ in behaviours):
-        # one shape (an untimed location, most often): its transitions are the classes
-        which = [(0, outcomes) for _, outcomes in behaviours]
-        classes = [(k,) for k in range(len(first.targets))]
-        paths = [(care, value, (k,)) for care, value, k in first.paths()]
-    else:
-        together = diagrams.leaf(())
-        used: dict[int, int] = {}  # shape node -> its position in a class
-        which = []  # per point: its shape's position in a class, and its outcomes
-        for row, outcomes in behaviours:
-            node = shapes.get((row.root, row.tests))
-            if node is None:
-                node = shapes[(row.root, row.tests)] = row.into(diagrams, lambda k: k)
-            index = used.get(node)
-            if index is None:
-                index = used[node] = len(used)
-                together = diagrams.apply("tuple", lambda t, k: (*t, k), together, node)
-            which.append((index, outcomes))
-        classes = [each for each, _ in diagrams.classes(together)]
-        paths = list(diagrams.paths(together))
-    grouped: dict[tuple[Guard, Outcome], set[tuple[int, ...]]] = {}
-    for each in classes:
+    found = folder.shapes.classes([row for row, _ in behaviours])
+    grouped: dict[tuple[Guard, Outcome], list[int]] = {}
+    for c, each in enumerate(found.transitions):
         folder.deadline.check()
         behaviour = {
             point: outcomes[each[index]]
-            for point, (index, outcomes) in zip(points, which, strict=True)
+            for point, index, (_, outcomes) in zip(points, found.position, behaviours, strict=True)
         }
         for box, outcome in partition(behaviour, len(clocks), bound, sink):
             guard: Guard = tuple(
                 (clocks[d], lo, hi) for d, (lo, hi) in enumerate(box) if (lo, hi) != (0, bound)
             )
-            grouped.setdefault((guard, outcome), set()).add(each)
+            grouped.setdefault((guard, outcome), []).append(c)
     edges = []
     for (guard, (t_key, resets, marks)), members in grouped.items():
         acc = tuple(k for k in range(num_sets) if marks >> k & 1)
-        cubes = tuple((care, value) for care, value, each in paths if each in members)
+        cubes = tuple(cube for c in members for cube in found.cubes[c])
         label = folder.labels.get(cubes)
         if label is None:  # locations of one automaton share most labels
             label = folder.labels[cubes] = Letters.of_cubes(cubes)

@@ -27,12 +27,13 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
 from mitlc.automata.graph import live_states
-from mitlc.automata.keys import SINK, Key, Rules, Transitions
+from mitlc.automata.keys import SINK, Key, Rules
 from mitlc.automata.keys import StateKind as StateKind
 from mitlc.automata.terms import TermStore
 from mitlc.errors import MitlcError
@@ -62,15 +63,13 @@ def state_limit_error(limit: int) -> StateLimitError:
 
 @dataclass(slots=True)
 class _Explored:
-    """The states found so far, in discovery order, with their transitions as diagrams."""
+    """The states found so far, in discovery order, with their rows."""
 
     keys: list[Key] = field(default_factory=list)
     index: dict[Key, int] = field(default_factory=dict)
-    transitions: list[Transitions] = field(default_factory=list)
-    """Per state: its :meth:`Rules.transitions`."""
-    delta: list[list[int]] = field(default_factory=list)
-    """Per state: the states its transitions lead to, by least letter."""
-    marks: list[list[int]] = field(default_factory=list)
+    rows: list[Row] = field(default_factory=list)
+    """Per state: its :meth:`Rules.transitions` as a row over discovery ids (its targets: the
+    states it leads to, by least letter)."""
     epsilon: list[tuple[int, int]] = field(default_factory=list)
 
     def id(self, key: Key, limit: int) -> int:
@@ -145,29 +144,29 @@ class _Builder:
         """Breadth-first exploration from the initial obligation, jumps included.
 
         A state's successors are made once per class of letters it tells apart (the terminals
-        of :meth:`Rules.transitions`), by least letter: the order in which a table over every
-        letter first meets them, so states are numbered as there, at a cost that grows with the
-        classes, not with ``2^n``."""
+        of :meth:`Rules.transitions`), by least letter (:meth:`Row.export` meets them so): the
+        order in which a table over every letter first meets them, so states are numbered as
+        there, at a cost that grows with the classes, not with ``2^n``."""
         explored = _Explored()
         start = self.rules.start()
         limit, deadline = self.max_states, self.deadline
         keys, index = explored.keys, explored.index
-        classes = self.rules.progression.diagrams.classes
+        diagrams = self.rules.progression.diagrams
         explored.id(start, limit)
         position = 0
         while position < len(keys):
             deadline.check_now()
             key = keys[position]
             transitions = self.rules.transitions(key)
-            targets, marks = [], []
-            for value, _ in classes(transitions.diagram):
-                target, mark = transitions.outcome(value)
+
+            def discover(
+                value: Any, outcome: Callable[[Any], tuple[Key, int]] = transitions.outcome
+            ) -> tuple[int, int]:
+                target, mark = outcome(value)
                 found = index.get(target)
-                targets.append(explored.id(target, limit) if found is None else found)
-                marks.append(mark)
-            explored.transitions.append(transitions)
-            explored.delta.append(targets)
-            explored.marks.append(marks)
+                return (explored.id(target, limit) if found is None else found), mark
+
+            explored.rows.append(Row.export(diagrams, transitions.diagram, discover))
             for jump in self.rules.jumps(key, deadline):
                 explored.epsilon.append((position, explored.id(jump, limit)))
             position += 1
@@ -177,10 +176,11 @@ class _Builder:
         """Merge dead states into the sink, renumber breadth-first, attach the obligations."""
         keys, rules = explored.keys, self.rules
         sink_ids = {i for i, k in enumerate(keys) if k == SINK}
+        delta = [row.targets for row in explored.rows]
         live = live_states(
-            explored.delta, explored.marks, explored.epsilon, rules.num_sets, sink_ids
+            delta, [row.marks for row in explored.rows], explored.epsilon, rules.num_sets, sink_ids
         )
-        order = _bfs_order(explored, live)
+        order = _bfs_order(delta, explored.epsilon, live)
         new_id = {old: new for new, old in enumerate(order)}
         sink: int | None = None
         if len(order) < len(keys) or not live:
@@ -190,16 +190,11 @@ class _Builder:
         remap = [-1 if sink is None else sink] * len(keys)
         for old, new in new_id.items():
             remap[old] = new
-        diagrams, index = rules.progression.diagrams, explored.index
-
-        def row(transitions: Transitions) -> Row:
-            def relabel(value: Any) -> tuple[int, int]:
-                target, marks = transitions.outcome(value)
-                return remap[index[target]], marks
-
-            return Row.export(diagrams, transitions.diagram, relabel)
-
-        rows = [row(explored.transitions[old]) for old in order]
+        moved = {old for old, new in enumerate(remap) if old != new}  # most often: the sink
+        rows = [
+            row if moved.isdisjoint(row.targets) else row.renumbered(remap)
+            for row in (explored.rows[old] for old in order)
+        ]
         states = []
         for old in order:
             self.deadline.check()
@@ -226,18 +221,20 @@ class _Builder:
         return Translation(automaton, rules.store, tuple(new_keys))
 
 
-def _bfs_order(explored: _Explored, live: set[int]) -> list[int]:
+def _bfs_order(
+    delta: Sequence[Sequence[int]], epsilon: Sequence[tuple[int, int]], live: set[int]
+) -> list[int]:
     """Live states in breadth-first order from the initial state: letters, then jumps."""
     if 0 not in live:
         return []
     jumps: dict[int, list[int]] = {}
-    for s, t in explored.epsilon:
+    for s, t in epsilon:
         jumps.setdefault(s, []).append(t)
     order, seen = [0], {0}
     position = 0
     while position < len(order):
         state = order[position]
-        for t in [*explored.delta[state], *jumps.get(state, ())]:
+        for t in [*delta[state], *jumps.get(state, ())]:
             if t in live and t not in seen:
                 seen.add(t)
                 order.append(t)

@@ -100,10 +100,14 @@ class Progression:
                 (only,) = cube
                 return self._atom_split(only)
         if len(cubes) <= SEQUENTIAL_CUBES:
-            result = d.leaf(store.false)
+            # or_(false, x) is x: the first conjunction is where the disjunction starts
+            result: int | None = None
             for cube in cubes:
-                result = d.apply("or", store.or_, result, self._conjoin(cube))
-            return result
+                conjunction = self._conjoin(cube)
+                result = (
+                    conjunction if result is None else d.apply("or", store.or_, result, conjunction)
+                )
+            return d.leaf(store.false) if result is None else result
         union = d.leaf(frozenset())
         for cube in cubes:
             union = d.apply("union", _union(store), union, self._conjoin(cube))
@@ -111,10 +115,13 @@ class Progression:
 
     def _conjoin(self, cube: frozenset[int]) -> int:
         store, d = self.store, self.diagrams
-        conjunction = d.leaf(store.true)
+        conjunction: int | None = None  # and_(true, x) is x: the first atom's split starts it
         for atom in cube:
-            conjunction = d.apply("and", store.and_, conjunction, self._atom_split(atom))
-        return conjunction
+            split = self._atom_split(atom)
+            conjunction = (
+                split if conjunction is None else d.apply("and", store.and_, conjunction, split)
+            )
+        return d.leaf(store.true) if conjunction is None else conjunction
 
     def _atom_split(self, atom: int) -> int:
         found = self._atom_splits.get(atom)

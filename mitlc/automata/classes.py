@@ -1,0 +1,107 @@
+"""The classes of letters that several rows tell apart together: ``Shapes.classes(rows)``.
+
+A location of the T-LDGBA covers several digital states, each with its :class:`Row`; an edge's
+letters must take the same transition of every one of them. Those classes are the distinct
+tuples ``(rows[0].transition(l), rows[1].transition(l), ...)`` over the letters ``l``; they
+depend on the rows' *shapes* (which letters take which transition), not on where the
+transitions lead. They are computed, in increasing order of their least letter, by the
+cheapest of three exact ways:
+
+* one shape: its transitions are the classes and its paths their cubes;
+* few letters (the rows read at most :data:`SMALL_READS` propositions together): each valuation
+  of those propositions is read through every shape;
+* otherwise the shapes' decision diagrams are combined (:meth:`Diagrams.apply`) and the
+  classes are the terminals of the combination (Bryant 1986, as in :mod:`mitlc.automata.bdd`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from mitlc.automata.bdd import Diagrams
+from mitlc.automata.digital import Row
+from mitlc.automata.labels import submasks
+
+SMALL_READS = 4
+"""Rows that read at most this many propositions together are read letter by letter."""
+
+
+@dataclass(frozen=True, slots=True)
+class LetterClasses:
+    """The classes of letters some rows tell apart, by least letter."""
+
+    position: tuple[int, ...]
+    """Per row: the position of its shape in each class's transitions."""
+    transitions: tuple[tuple[int, ...], ...]
+    """Per class: the transition each shape takes on its letters."""
+    cubes: tuple[tuple[tuple[int, int], ...], ...]
+    """Per class: its letters, as disjoint cubes ``(care, value)``."""
+
+
+def _shape(row: Row) -> tuple[int, tuple[tuple[int, int, int], ...]]:
+    return row.root, row.tests
+
+
+class Shapes:
+    """Rows' shapes, each made once as a diagram of one store (terminal ``k``: transition
+    ``k``), for the classes of any group of rows."""
+
+    def __init__(self) -> None:
+        self.diagrams = Diagrams()
+        self._nodes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
+
+    def classes(self, rows: Sequence[Row]) -> LetterClasses:
+        """The classes of letters ``rows`` tell apart together (module docstring)."""
+        distinct: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
+        shapes: list[Row] = []
+        position = []
+        for row in rows:
+            found = distinct.get(_shape(row))
+            if found is None:
+                found = distinct[_shape(row)] = len(shapes)
+                shapes.append(row)
+            position.append(found)
+        if len(shapes) == 1:
+            (only,) = shapes
+            cubes: list[list[tuple[int, int]]] = [[] for _ in only.targets]
+            for care, value, k in only.paths():
+                cubes[k].append((care, value))
+            return LetterClasses(
+                tuple(position),
+                tuple((k,) for k in range(len(cubes))),
+                tuple(map(tuple, cubes)),
+            )
+        reads = 0
+        for row in shapes:
+            reads |= row.reads
+        if reads.bit_count() <= SMALL_READS:
+            return _by_letter(tuple(position), shapes, reads)
+        return self._by_diagram(tuple(position), shapes)
+
+    def _by_diagram(self, position: tuple[int, ...], shapes: list[Row]) -> LetterClasses:
+        d = self.diagrams
+        together = d.leaf(())
+        for row in shapes:
+            node = self._nodes.get(_shape(row))
+            if node is None:
+                node = self._nodes[_shape(row)] = row.into(d, lambda k: k)
+            together = d.apply("tuple", lambda t, k: (*t, k), together, node)
+        order = {each: i for i, (each, _) in enumerate(d.classes(together))}
+        cubes: list[list[tuple[int, int]]] = [[] for _ in order]
+        for care, value, each in d.paths(together):
+            cubes[order[each]].append((care, value))
+        return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)))
+
+
+def _by_letter(position: tuple[int, ...], shapes: list[Row], reads: int) -> LetterClasses:
+    order: dict[tuple[int, ...], int] = {}
+    cubes: list[list[tuple[int, int]]] = []
+    for letter in submasks(reads):  # ascending: classes by least letter
+        each = tuple(row.transition(letter) for row in shapes)
+        found = order.get(each)
+        if found is None:
+            found = order[each] = len(cubes)
+            cubes.append([])
+        cubes[found].append((reads, letter))
+    return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)))
