@@ -96,16 +96,20 @@ class Diagrams:
         found = memo.get(key)
         if found is not None:
             return found
-        var = self.var
+        var, low, high = self.var, self.low, self.high
         vf, vg = var[f], var[g]
-        if vf == LEAF and vg == LEAF:
-            found = self.leaf(op(self.values[f], self.values[g]))
+        if vf == vg:
+            if vf == LEAF:
+                found = memo[key] = self.leaf(op(self.values[f], self.values[g]))
+                return found
+            lo = self._apply(memo, op, low[f], low[g])
+            hi = self._apply(memo, op, high[f], high[g])
+        elif vf > vg:
+            vg = vf
+            lo, hi = self._apply(memo, op, low[f], g), self._apply(memo, op, high[f], g)
         else:
-            top = vf if vf > vg else vg
-            f0, f1 = (self.low[f], self.high[f]) if vf == top else (f, f)
-            g0, g1 = (self.low[g], self.high[g]) if vg == top else (g, g)
-            found = self.node(top, self._apply(memo, op, f0, g0), self._apply(memo, op, f1, g1))
-        memo[key] = found
+            lo, hi = self._apply(memo, op, f, low[g]), self._apply(memo, op, f, high[g])
+        found = memo[key] = self.node(vg, lo, hi)
         return found
 
     def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:

@@ -17,7 +17,7 @@ cheapest of three exact ways:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from typing import NamedTuple, TypeAlias
 
 from mitlc.automata.bdd import Diagrams
 from mitlc.automata.digital import Row
@@ -27,8 +27,7 @@ SMALL_READS = 4
 """Rows that read at most this many propositions together are read letter by letter."""
 
 
-@dataclass(frozen=True, slots=True)
-class LetterClasses:
+class LetterClasses(NamedTuple):
     """The classes of letters some rows tell apart, by least letter."""
 
     position: tuple[int, ...]
@@ -37,6 +36,10 @@ class LetterClasses:
     """Per class: the transition each shape takes on its letters."""
     cubes: tuple[tuple[tuple[int, int], ...], ...]
     """Per class: its letters, as disjoint cubes ``(care, value)``."""
+
+
+_Classes: TypeAlias = tuple[tuple[tuple[int, ...], ...], tuple[tuple[tuple[int, int], ...], ...]]
+"""The transitions and the cubes of some classes (:class:`LetterClasses`)."""
 
 
 def _shape(row: Row) -> tuple[int, tuple[tuple[int, int, int], ...]]:
@@ -50,34 +53,41 @@ class Shapes:
     def __init__(self) -> None:
         self.diagrams = Diagrams()
         self._nodes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
+        self._single: dict[tuple[int, tuple[tuple[int, int, int], ...]], _Classes] = {}
 
     def classes(self, rows: Sequence[Row]) -> LetterClasses:
         """The classes of letters ``rows`` tell apart together (module docstring)."""
+        if len(rows) == 1:  # most locations: one state
+            return self._of_one(rows[0], (0,))
         distinct: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
         shapes: list[Row] = []
         position = []
         for row in rows:
-            found = distinct.get(_shape(row))
+            shape = _shape(row)
+            found = distinct.get(shape)
             if found is None:
-                found = distinct[_shape(row)] = len(shapes)
+                found = distinct[shape] = len(shapes)
                 shapes.append(row)
             position.append(found)
         if len(shapes) == 1:
-            (only,) = shapes
-            cubes: list[list[tuple[int, int]]] = [[] for _ in only.targets]
-            for care, value, k in only.paths():
-                cubes[k].append((care, value))
-            return LetterClasses(
-                tuple(position),
-                tuple((k,) for k in range(len(cubes))),
-                tuple(map(tuple, cubes)),
-            )
+            return self._of_one(shapes[0], tuple(position))
         reads = 0
         for row in shapes:
             reads |= row.reads
         if reads.bit_count() <= SMALL_READS:
             return _by_letter(tuple(position), shapes, reads)
         return self._by_diagram(tuple(position), shapes)
+
+    def _of_one(self, row: Row, position: tuple[int, ...]) -> LetterClasses:
+        """One shape: its transitions are the classes, its paths their cubes (made once)."""
+        single = self._single.get(_shape(row))
+        if single is None:
+            cubes: list[list[tuple[int, int]]] = [[] for _ in row.targets]
+            for care, value, k in row.paths():
+                cubes[k].append((care, value))
+            transitions = tuple((k,) for k in range(len(cubes)))
+            single = self._single[_shape(row)] = (transitions, tuple(map(tuple, cubes)))
+        return LetterClasses(position, *single)
 
     def _by_diagram(self, position: tuple[int, ...], shapes: list[Row]) -> LetterClasses:
         d = self.diagrams

@@ -79,11 +79,12 @@ class Row:
         targets, marks = zip(*outcomes, strict=True)
         return Row(root, tuple(tests), targets, marks)
 
-    def renumbered(self, state: Sequence[int]) -> Row:
+    def renumbered(self, state: Sequence[int], one_to_one: bool = False) -> Row:
         """This row with each target ``t`` renamed ``state[t]`` (transitions that come to
-        agree are merged, and the diagram kept reduced)."""
-        targets = tuple(state[t] for t in self.targets)
-        if len(set(zip(targets, self.marks, strict=True))) == len(targets):
+        agree are merged, and the diagram kept reduced; none can when ``one_to_one``: no two
+        states are renamed alike)."""
+        targets = tuple(map(state.__getitem__, self.targets))
+        if one_to_one or len(set(zip(targets, self.marks, strict=True))) == len(targets):
             return Row(self.root, self.tests, targets, self.marks)
         diagrams = Diagrams()  # rare: dead states merged into the sink
         node = self.into(diagrams, lambda k: (targets[k], self.marks[k]))

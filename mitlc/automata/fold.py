@@ -127,6 +127,12 @@ class _Folder:
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
         default_factory=dict
     )
+    acceptance: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    """The acceptance sets of a mask of marks."""
+    unclocked: dict[tuple[int, int], tuple[LocKey, dict[int, int], tuple[int, ...]]] = field(
+        default_factory=dict
+    )
+    """:meth:`retemplate` from a source whose clocks are all stopped, per (state, step)."""
 
     @property
     def store(self) -> TermStore:
@@ -146,8 +152,19 @@ class _Folder:
     ) -> tuple[LocKey, dict[int, int], tuple[int, ...]]:
         """The location and valuation of ``state`` reached from ``source`` (None: the start)."""
         forms = self.translation.keys[state].forms
-        if not forms:  # the sink and the accepting sink: no atoms, no clocks
+        if not forms or self.untimed:  # no atoms or no clocks: the location is the state's
             return self.location_key(state, ()), {}, ()
+        if not values:  # no clock runs: what the state's own atoms make of it, made once
+            found = self.unclocked.get((state, step))
+            if found is None:
+                found = self.unclocked[(state, step)] = self._retemplate(state, None, {}, step)
+            return found
+        return self._retemplate(state, source, values, step)
+
+    def _retemplate(
+        self, state: int, source: LocKey | None, values: dict[int, int], step: int
+    ) -> tuple[LocKey, dict[int, int], tuple[int, ...]]:
+        forms = self.translation.keys[state].forms
         store = self.store
         with_operands = step == 1
         matcher = _Matcher(store)
@@ -167,16 +184,12 @@ class _Folder:
         new_values = dict(matcher.kept)
         if not matcher.fresh_used:  # every timed atom keeps its clock
             templates = tuple(frozenset(frozenset(cube) for cube in form) for form in raw)
-            if self.untimed:
-                return self.location_key(state, templates), {}, ()
             return self.location_key(state, templates), new_values, ()
         fresh = min(c for c in range(len(matcher.kept) + 1) if c not in matcher.kept)
         templates = tuple(
             frozenset(frozenset(_with_clock(a, fresh) for a in cube) for cube in form)
             for form in raw
         )
-        if self.untimed:
-            return self.location_key(state, templates), {}, ()
         new_values[fresh] = 0
         return self.location_key(state, templates), new_values, (fresh,)
 
@@ -277,6 +290,10 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
     with :class:`mitlc.limits.LimitError`.
     """
     deadline = Deadline.none() if deadline is None else deadline
+    if not _has_timed_atoms(translation):
+        # Without clocks a location is its forms, which name one state each: no fewer
+        # locations than states, so folding cannot pay.
+        return unfolded(translation, deadline=deadline)
     unfold: set[LocKey] = set()
     for _ in range(MAX_REFINEMENTS):
         folder = _Folder(translation, unfold, deadline)
@@ -293,6 +310,17 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
             break
         unfold |= conflicts
     return unfolded(translation, deadline=deadline)
+
+
+def _has_timed_atoms(translation: Translation) -> bool:
+    store = translation.store
+    return any(
+        _is_timed(store, atom)
+        for key in translation.keys
+        for form in key.forms
+        for cube in store.forms[form]
+        for atom in cube
+    )
 
 
 def unfolded(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:
@@ -369,7 +397,9 @@ def _edges(
             grouped.setdefault((guard, outcome), []).append(c)
     edges = []
     for (guard, (t_key, resets, marks)), members in grouped.items():
-        acc = tuple(k for k in range(num_sets) if marks >> k & 1)
+        acc = folder.acceptance.get(marks)
+        if acc is None:
+            acc = folder.acceptance[marks] = tuple(k for k in range(num_sets) if marks >> k & 1)
         cubes = tuple(cube for c in members for cube in found.cubes[c])
         label = folder.labels.get(cubes)
         if label is None:  # locations of one automaton share most labels

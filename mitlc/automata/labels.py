@@ -85,7 +85,7 @@ class Letters:
         while bits:
             bit = bits & -bits
             bits ^= bit
-            if all(m ^ bit in kept for m in kept):
+            if kept == {m ^ bit for m in kept}:  # closed under flipping ``bit``: it is free
                 mask &= ~bit
                 kept = frozenset(m & ~bit for m in kept)
         return Letters(mask if kept else 0, kept)
@@ -102,10 +102,18 @@ class Letters:
     def of_cubes(cubes: Iterable[tuple[int, int]]) -> Letters:
         """The letters of a union of cubes ``(care, value)`` (e.g. a decision diagram's paths)."""
         listed = list(cubes)
+        if len(listed) == 1:  # a cube depends on every proposition it fixes
+            ((care, value),) = listed
+            return Letters(care, frozenset((value,)))
         support = 0
         for care, _ in listed:
             support |= care
-        members = {value | free for care, value in listed for free in submasks(support & ~care)}
+        members = set()
+        for care, value in listed:
+            if care == support:  # a whole valuation of the support: one member
+                members.add(value)
+            else:
+                members.update(value | free for free in submasks(support & ~care))
         return Letters.of(support, members)
 
     def __or__(self, other: Letters) -> Letters:

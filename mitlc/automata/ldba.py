@@ -191,8 +191,9 @@ class _Builder:
         for old, new in new_id.items():
             remap[old] = new
         moved = {old for old, new in enumerate(remap) if old != new}  # most often: the sink
+        one_to_one = len(set(remap)) == len(remap)  # no dead state but the sink
         rows = [
-            row if moved.isdisjoint(row.targets) else row.renumbered(remap)
+            row if moved.isdisjoint(row.targets) else row.renumbered(remap, one_to_one)
             for row in (explored.rows[old] for old in order)
         ]
         states = []
