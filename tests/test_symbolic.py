@@ -176,6 +176,11 @@ def test_classes_of_rows_taken_together_are_those_of_every_letter(num_props: int
     transitions read letter by letter: the same classes, by least letter, with their letters."""
     rng = random.Random(num_props)
     shapes = Shapes()
+    for low, high in ((~0, ~1), (~1, ~0)):  # one test, its transitions either way round
+        found = shapes.classes([Row(0, ((2, low, high),), (5, 6), (0, 0))])
+        assert found.transitions == ((~low,), (~high,))
+        assert found.letters == (Letters.of(4, [0]), Letters.of(4, [4]))
+    assert shapes.classes([Row.constant(3)]).letters == (Letters.everything(),)
     for _ in range(60):
         rows = [_random_row(rng, num_props) for _ in range(rng.randint(1, 4))]
         rows += rng.sample(rows, rng.randint(0, len(rows)))  # some shapes twice
@@ -184,8 +189,10 @@ def test_classes_of_rows_taken_together_are_those_of_every_letter(num_props: int
         for letter in range(1 << num_props):
             expected.setdefault(tuple(row.transition(letter) for row in rows), []).append(letter)
         assert len(found.transitions) == len(expected)
-        for each, cubes, (transitions, letters) in zip(
-            found.transitions, found.cubes, expected.items(), strict=True
+        everything = (1 << num_props) - 1
+        for each, cubes, label, (transitions, letters) in zip(
+            found.transitions, found.cubes, found.letters, expected.items(), strict=True
         ):
             assert [each[p] for p in found.position] == list(transitions)
             assert Letters.of_cubes(cubes).letters(num_props) == letters
+            assert label == Letters.of(everything, letters)

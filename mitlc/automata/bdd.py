@@ -49,9 +49,11 @@ class Diagrams:
             found = self._leaves[value] = self._add(LEAF, -1, -1, value)
         return found
 
-    def _memo(self, name: Hashable) -> dict[int, int]:
+    def _memo(self, name: Hashable | None) -> dict[int, int]:
         """The memo of one operation: ``f << 32 | g`` -> result (int keys: nothing for the
-        cyclic garbage collector to scan)."""
+        cyclic garbage collector to scan); ``None``: one for this call only."""
+        if name is None:
+            return {}
         found = self._memos.get(name)
         if found is None:
             found = self._memos[name] = {}
@@ -82,9 +84,12 @@ class Diagrams:
     # The recursions below are methods, not nested functions: a nested recursive function is a
     # reference cycle, left for the cyclic garbage collector on every call.
 
-    def apply(self, name: Hashable, op: Callable[[Any, Any], Hashable], f: int, g: int) -> int:
+    def apply(
+        self, name: Hashable | None, op: Callable[[Any, Any], Hashable], f: int, g: int
+    ) -> int:
         """The diagram of ``op(f(l), g(l))`` on every letter ``l``; ``name`` identifies ``op``
-        for the memo (the same name must always mean the same operation)."""
+        for the memo (the same name must always mean the same operation; ``None`` for an
+        operation made once, whose memo is not kept)."""
         if self.var[f] == LEAF and self.var[g] == LEAF:
             return self.leaf(op(self.values[f], self.values[g]))
         return self._apply(self._memo(name), op, f, g)
@@ -112,11 +117,12 @@ class Diagrams:
         found = memo[key] = self.node(vg, lo, hi)
         return found
 
-    def map(self, name: Hashable, op: Callable[[Any], Hashable], f: int) -> int:
-        """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo."""
+    def map(self, name: Hashable | None, op: Callable[[Any], Hashable], f: int) -> int:
+        """The diagram of ``op(f(l))``; ``name`` identifies ``op`` for the memo (``None``: an
+        operation made once)."""
         if self.var[f] == LEAF:
             return self.leaf(op(self.values[f]))
-        return self._map(self._memo(("map", name)), op, f)
+        return self._map(self._memo(None if name is None else ("map", name)), op, f)
 
     def _map(self, memo: dict[int, int], op: Callable[[Any], Hashable], f: int) -> int:
         found = memo.get(f)

@@ -21,7 +21,7 @@ from typing import NamedTuple, TypeAlias
 
 from mitlc.automata.bdd import Diagrams
 from mitlc.automata.digital import Row
-from mitlc.automata.labels import submasks
+from mitlc.automata.labels import Letters, submasks
 
 SMALL_READS = 4
 """Rows that read at most this many propositions together are read letter by letter."""
@@ -36,10 +36,17 @@ class LetterClasses(NamedTuple):
     """Per class: the transition each shape takes on its letters."""
     cubes: tuple[tuple[tuple[int, int], ...], ...]
     """Per class: its letters, as disjoint cubes ``(care, value)``."""
+    letters: tuple[Letters, ...]
+    """Per class: its letters."""
 
 
-_Classes: TypeAlias = tuple[tuple[tuple[int, ...], ...], tuple[tuple[tuple[int, int], ...], ...]]
-"""The transitions and the cubes of some classes (:class:`LetterClasses`)."""
+_Classes: TypeAlias = tuple[
+    tuple[tuple[int, ...], ...], tuple[tuple[tuple[int, int], ...], ...], tuple[Letters, ...]
+]
+"""The transitions, cubes and letters of some classes (:class:`LetterClasses`)."""
+
+
+_EVERY_LETTER: _Classes = (((0,),), (((0, 0),),), (Letters.everything(),))
 
 
 def _shape(row: Row) -> tuple[int, tuple[tuple[int, int, int], ...]]:
@@ -80,13 +87,26 @@ class Shapes:
 
     def _of_one(self, row: Row, position: tuple[int, ...]) -> LetterClasses:
         """One shape: its transitions are the classes, its paths their cubes (made once)."""
+        tests = row.tests
+        if not tests:  # the same transition on every letter
+            return LetterClasses(position, *_EVERY_LETTER)
+        if len(tests) == 1:  # one proposition read: its two values
+            var, low, high = tests[0]
+            bit = 1 << var
+            return LetterClasses(
+                position,
+                ((~low,), (~high,)),
+                (((bit, 0),), ((bit, bit),)),
+                (Letters(bit, frozenset((0,))), Letters(bit, frozenset((bit,)))),
+            )
         single = self._single.get(_shape(row))
         if single is None:
             cubes: list[list[tuple[int, int]]] = [[] for _ in row.targets]
             for care, value, k in row.paths():
                 cubes[k].append((care, value))
             transitions = tuple((k,) for k in range(len(cubes)))
-            single = self._single[_shape(row)] = (transitions, tuple(map(tuple, cubes)))
+            letters = tuple(map(Letters.of_cubes, cubes))
+            single = self._single[_shape(row)] = (transitions, tuple(map(tuple, cubes)), letters)
         return LetterClasses(position, *single)
 
     def _by_diagram(self, position: tuple[int, ...], shapes: list[Row]) -> LetterClasses:
@@ -101,7 +121,8 @@ class Shapes:
         cubes: list[list[tuple[int, int]]] = [[] for _ in order]
         for care, value, each in d.paths(together):
             cubes[order[each]].append((care, value))
-        return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)))
+        letters = tuple(map(Letters.of_cubes, cubes))
+        return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)), letters)
 
 
 def _by_letter(position: tuple[int, ...], shapes: list[Row], reads: int) -> LetterClasses:
@@ -114,4 +135,5 @@ def _by_letter(position: tuple[int, ...], shapes: list[Row], reads: int) -> Lett
             found = order[each] = len(cubes)
             cubes.append([])
         cubes[found].append((reads, letter))
-    return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)))
+    letters = tuple(Letters.of(reads, (value for _, value in each)) for each in cubes)
+    return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)), letters)

@@ -23,7 +23,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import NamedTuple, TypeAlias
 
-from mitlc.automata.classes import Shapes
+from mitlc.automata.classes import LetterClasses, Shapes
 from mitlc.automata.digital import Row, Verdict
 from mitlc.automata.guards import partition
 from mitlc.automata.labels import Letters
@@ -295,8 +295,9 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
         # locations than states, so folding cannot pay.
         return unfolded(translation, deadline=deadline)
     unfold: set[LocKey] = set()
+    shapes, labels = Shapes(), dict[tuple[tuple[int, int], ...], Letters]()  # for every try
     for _ in range(MAX_REFINEMENTS):
-        folder = _Folder(translation, unfold, deadline)
+        folder = _Folder(translation, unfold, deadline, shapes=shapes, labels=labels)
         try:
             folder.explore()
         except _NotWorthFolding:
@@ -309,24 +310,21 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
                 return folded
             break
         unfold |= conflicts
-    return unfolded(translation, deadline=deadline)
+    return _unfolded(_Folder(translation, set(), deadline, True, shapes=shapes, labels=labels))
 
 
 def _has_timed_atoms(translation: Translation) -> bool:
-    store = translation.store
-    return any(
-        _is_timed(store, atom)
-        for key in translation.keys
-        for form in key.forms
-        for cube in store.forms[form]
-        for atom in cube
-    )
+    """Whether the store has a bounded atom (a state that holds one may need a clock)."""
+    return any(kind != LIT and hi != INF for kind, _, hi, _, _ in translation.store.atoms)
 
 
 def unfolded(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:
     """The digital automaton as a T-LDGBA: one location per state, no clocks."""
     deadline = Deadline.none() if deadline is None else deadline
-    folder = _Folder(translation, set(), deadline, untimed=True)
+    return _unfolded(_Folder(translation, set(), deadline, untimed=True))
+
+
+def _unfolded(folder: _Folder) -> Tldgba:
     folder.explore()
     return _build(folder)
 
@@ -400,12 +398,18 @@ def _edges(
         acc = folder.acceptance.get(marks)
         if acc is None:
             acc = folder.acceptance[marks] = tuple(k for k in range(num_sets) if marks >> k & 1)
-        cubes = tuple(cube for c in members for cube in found.cubes[c])
-        label = folder.labels.get(cubes)
-        if label is None:  # locations of one automaton share most labels
-            label = folder.labels[cubes] = Letters.of_cubes(cubes)
+        label = found.letters[members[0]] if len(members) == 1 else _union(folder, found, members)
         edges.append(Edge(loc, folder.locations[t_key], label, guard, resets, acc))
     return edges
+
+
+def _union(folder: _Folder, found: LetterClasses, members: list[int]) -> Letters:
+    """The letters of several classes (locations of one automaton share most such unions)."""
+    cubes = tuple(cube for c in members for cube in found.cubes[c])
+    label = folder.labels.get(cubes)
+    if label is None:
+        label = folder.labels[cubes] = Letters.of_cubes(cubes)
+    return label
 
 
 def _edge_order(edge: Edge) -> tuple[object, ...]:

@@ -130,7 +130,8 @@ class Progression:
         return found
 
     def _compute(self, atom: int) -> int:
-        """The progression of one atom (module docstring), as a diagram."""
+        """The progression of one atom (module docstring), as a diagram. It is made once per
+        atom (:meth:`_atom_split`), so its diagram operations keep no memo (name ``None``)."""
         store, d = self.store, self.diagrams
         kind, lo, hi, left, right = store.atoms[atom]
         if kind == LIT:
@@ -147,37 +148,37 @@ class Progression:
                     if hi == 0
                     else store.temporal(kind, 0, later_hi, left, keep_point=True)
                 )
-                return d.map(("or", rest), lambda v: store.or_(v, rest), now)
+                return d.map(None, lambda v: store.or_(v, rest), now)
             rest = (
                 store.true if hi == 0 else store.temporal(kind, 0, later_hi, left, keep_point=True)
             )
-            return d.map(("and", rest), lambda v: store.and_(v, rest), now)
+            return d.map(None, lambda v: store.and_(v, rest), now)
         left_now = self.split(left)
         if kind == UNTIL:
             if lo > 0:
                 shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
-                return d.map(("and", shifted), lambda v: store.and_(v, shifted), left_now)
+                return d.map(None, lambda v: store.and_(v, shifted), left_now)
             rest = (
                 store.false
                 if hi == 0
                 else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
             )
             return d.apply(
-                ("until", rest),
+                None,
                 lambda q, p: store.or_(q, store.and_(p, rest)),
                 self.split(right),
                 left_now,
             )
         if lo > 0:
             shifted = store.temporal(kind, lo - 1, later_hi, left, right, keep_point=True)
-            return d.map(("or", shifted), lambda v: store.or_(v, shifted), left_now)
+            return d.map(None, lambda v: store.or_(v, shifted), left_now)
         rest = (
             store.true
             if hi == 0
             else store.temporal(kind, 0, later_hi, left, right, keep_point=True)
         )
         return d.apply(
-            ("release", rest),
+            None,
             lambda q, p: store.and_(q, store.or_(p, rest)),
             self.split(right),
             left_now,
