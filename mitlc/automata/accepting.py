@@ -18,12 +18,11 @@ seed ``χ[Y]μ`` and the pending token ``R``: reading a letter, ``R' = af(R | se
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from itertools import combinations
 
-from mitlc.automata.progress import Progression
 from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 from mitlc.automata.text import form_text
 from mitlc.limits import Deadline
@@ -119,18 +118,22 @@ class Guess:
     tokens: tuple[tuple[int, int, int], ...]
     """``(k, seed, pending)`` for each ``χ_k ∈ X``, by increasing ``k``."""
 
-    def step(
-        self, progression: Progression, letter: int, num_sets: int
+    def read_forms(self, store: TermStore) -> list[int]:
+        """The forms whose progressions :meth:`advance` reads: ``S``, then ``R | seed`` for
+        each token."""
+        return [self.safety, *(store.or_(pending, seed) for _, seed, pending in self.tokens)]
+
+    def advance(
+        self, store: TermStore, progressed: Sequence[int], num_sets: int
     ) -> tuple[Guess, int] | None:
-        """The successor on ``letter`` and its acceptance marks; ``None`` if ``S`` fails."""
-        store = progression.store
-        safety = progression.step(self.safety, letter)
+        """The successor and its acceptance marks, given the progressions of
+        :meth:`read_forms` through a letter (in their order); ``None`` if ``S`` fails."""
+        safety = progressed[0]
         if safety == store.false:
             return None
         marks = (1 << num_sets) - 1
         tokens = []
-        for k, seed, pending in self.tokens:
-            after = progression.step(store.or_(pending, seed), letter)
+        for (k, seed, _), after in zip(self.tokens, progressed[1:], strict=True):
             if after == store.true:
                 after = store.false
             else:
@@ -171,12 +174,16 @@ def guesses(
         safety_core = substitution.nu(form, xs)
         if safety_core == store.false:
             continue
+        always: dict[int, int] = {}  # chi -> G (chi[X]ν), made when first needed
         for ys in _subsets(nu_here):
             clock.check_now()
             safety = safety_core
             for chi in sorted(ys):
-                weak = substitution.nu(store.atom_form(chi), xs)
-                safety = store.and_(safety, store.temporal(ALWAYS, 0, INF, weak))
+                found = always.get(chi)
+                if found is None:
+                    weak = substitution.nu(store.atom_form(chi), xs)
+                    found = always[chi] = store.temporal(ALWAYS, 0, INF, weak)
+                safety = store.and_(safety, found)
             if safety == store.false:
                 continue
             seeds = [(index[chi], substitution.mu(store.atom_form(chi), ys)) for chi in sorted(xs)]

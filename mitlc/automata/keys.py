@@ -11,7 +11,7 @@ letter with its acceptance marks, the epsilon jumps of a key, the propositions a
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple, TypeAlias
 
@@ -119,42 +119,40 @@ class Rules:
 
     def successor(self, key: Key, letter: int) -> tuple[Key, int]:
         """The successor of ``key`` on ``letter`` and the acceptance marks of that step."""
+        if key.kind == "initial":
+            return self.initial_key(self.progression.step(key.forms[0], letter)), 0
+        step = self.progression.step
+        return self.advance(key, [step(form, letter) for form in self.read_forms(key)])
+
+    def advance(self, key: Key, progressed: Sequence[int]) -> tuple[Key, int]:
+        """The successor of a key other than an initial one, and its marks, given the
+        progressions of :meth:`read_forms` through a letter (in their order)."""
         if key == SINK:
             return SINK, 0
         if key == TRUE:
             return TRUE, (1 << self.num_sets) - 1
-        if key.kind == "initial":
-            return self.initial_key(self.progression.step(key.forms[0], letter)), 0
         if key.kind == "recurrence":
             assert self.recurrence is not None
-            stepped = self.recurrence.step(self.progression, key.forms, letter)
+            stepped = self.recurrence.advance(self.store, progressed)
             if stepped is None:
                 return SINK, 0
             return Key("recurrence", stepped[0]), stepped[1]
-        moved = key.guess().step(self.progression, letter, self.num_sets)
+        moved = key.guess().advance(self.store, progressed, self.num_sets)
         if moved is None:
             return SINK, 0
         next_guess, marks = moved
         return Key.of_guess(next_guess), marks
 
     def read_forms(self, key: Key) -> list[int]:
-        """The forms whose progressions determine :meth:`successor` of ``key``: exactly the
-        forms that :meth:`Recurrence.step` and :meth:`Guess.step` progress."""
-        store = self.store
+        """The forms whose progressions determine :meth:`successor` of ``key`` (those that
+        :meth:`advance` reads; for an initial key, its obligation)."""
         if key.kind == "initial":
             return [key.forms[0]]
         if key.kind == "recurrence":
             assert self.recurrence is not None
-            forms = [key.forms[0], key.forms[1]]
-            for i, chi in enumerate(self.recurrence.chis):
-                if self.recurrence.renewing[i]:
-                    forms.append(chi)
-                else:
-                    forms += [key.forms[2 + 2 * i], store.and_(key.forms[3 + 2 * i], chi)]
-            return forms
+            return self.recurrence.read_forms(self.store, key.forms)
         if key.kind == "accepting":
-            guess = key.guess()
-            return [guess.safety, *(store.or_(pending, seed) for _, seed, pending in guess.tokens)]
+            return key.guess().read_forms(self.store)
         return []
 
     def reads(self, key: Key) -> int:
@@ -171,9 +169,10 @@ class Rules:
     def transitions(self, key: Key) -> Transitions:
         """The successor of ``key`` and the marks on every letter: a decision diagram (in
         ``progression.diagrams``) with one terminal per class of letters the key tells apart,
-        and what each terminal means, ``(successor key, marks)``. It is :meth:`successor` read
-        once per class: the classes are those of the progressions of :meth:`read_forms`, taken
-        together (for an initial state, its obligation's progression itself)."""
+        and what each terminal means, ``(successor key, marks)``. The diagram is that of the
+        progressions of :meth:`read_forms`, taken together, and a terminal means what
+        :meth:`advance` makes of them: what :meth:`successor` gives on each letter of its class
+        (for an initial state, the diagram is its obligation's progression itself)."""
         d = self.progression.diagrams
         if key.kind == "initial":
             initial_key = self.initial_key
@@ -184,8 +183,8 @@ class Rules:
         for form in self.read_forms(key):
             split = self.progression.split(form)
             together = d.apply("tuple", lambda t, v: (*t, v), together, split)
-        outcomes = {value: self.successor(key, least) for value, least in d.classes(together)}
-        return Transitions(together, outcomes.__getitem__)
+        advance = self.advance
+        return Transitions(together, lambda progressed: advance(key, progressed))
 
     def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
         """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`."""

@@ -21,10 +21,10 @@ its ``B`` and ``N`` stay ``true`` (the generalized Büchi automaton of ``G F φ_
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mitlc.automata.accepting import closure, unbounded_atoms
-from mitlc.automata.progress import Progression
 from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 
 
@@ -60,25 +60,37 @@ class Recurrence:
         ]
         return (self.safety, self.cosafety, *tokens)
 
-    def step(
-        self, progression: Progression, forms: tuple[int, ...], letter: int
+    def read_forms(self, store: TermStore, forms: tuple[int, ...]) -> list[int]:
+        """The forms whose progressions :meth:`advance` reads: ``S``, ``C``, then per
+        ``chi_i`` either ``chi_i`` (renewing) or ``B_i`` and ``N_i & chi_i``."""
+        read = [forms[0], forms[1]]
+        for i, chi in enumerate(self.chis):
+            if self.renewing[i]:
+                read.append(chi)
+            else:
+                read += [forms[2 + 2 * i], store.and_(forms[3 + 2 * i], chi)]
+        return read
+
+    def advance(
+        self, store: TermStore, progressed: Sequence[int]
     ) -> tuple[tuple[int, ...], int] | None:
-        """The successor forms and marks on ``letter``; ``None`` for the sink."""
-        store = progression.store
-        safety = progression.step(forms[0], letter)
-        cosafety = progression.step(forms[1], letter)
+        """The successor forms and marks, given the progressions of :meth:`read_forms`
+        through a letter (in their order); ``None`` for the sink."""
+        safety, cosafety = progressed[0], progressed[1]
         if store.false in (safety, cosafety):
             return None
         marks = 0
         tokens: list[int] = []
-        for i, chi in enumerate(self.chis):
+        position = 2
+        for i in range(len(self.chis)):
             if self.renewing[i]:
-                if progression.step(chi, letter) == store.true:
+                if progressed[position] == store.true:
                     marks |= 1 << i
                 tokens += [store.true, store.true]
+                position += 1
                 continue
-            batch = progression.step(forms[2 + 2 * i], letter)
-            fresh = progression.step(store.and_(forms[3 + 2 * i], chi), letter)
+            batch, fresh = progressed[position], progressed[position + 1]
+            position += 2
             if store.false in (batch, fresh):
                 return None
             if batch == store.true:
