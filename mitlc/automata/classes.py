@@ -128,8 +128,9 @@ class Shapes:
 def _by_letter(position: tuple[int, ...], shapes: list[Row], reads: int) -> LetterClasses:
     order: dict[tuple[int, ...], int] = {}
     cubes: list[list[tuple[int, int]]] = []
+    transition = [row.transition for row in shapes]
     for letter in submasks(reads):  # ascending: classes by least letter
-        each = tuple(row.transition(letter) for row in shapes)
+        each = tuple([read(letter) for read in transition])
         found = order.get(each)
         if found is None:
             found = order[each] = len(cubes)

@@ -96,11 +96,6 @@ class _Matcher:
         return (kind, left, right, base_lo, base_hi, clock), value
 
 
-def _is_timed(store: TermStore, atom_id: int) -> bool:
-    kind, _, hi, _, _ = store.atoms[atom_id]
-    return kind != LIT and hi != INF
-
-
 def _timed_atoms(template: Template) -> Iterable[TimedAtom]:
     for cube in template:
         for atom in cube:
@@ -127,6 +122,8 @@ class _Folder:
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
         default_factory=dict
     )
+    timed_ids: frozenset[int] = frozenset()
+    """The bounded atoms of the store (:func:`_timed_ids`)."""
     acceptance: dict[int, tuple[int, ...]] = field(default_factory=dict)
     """The acceptance sets of a mask of marks."""
     unclocked: dict[tuple[int, int], tuple[LocKey, dict[int, int], tuple[int, ...]]] = field(
@@ -171,11 +168,12 @@ class _Folder:
         for template in source.templates if source is not None else ():
             for atom in _timed_atoms(template):
                 matcher.add(atom, values, step, with_operands)
+        timed = self.timed_ids
         raw: list[list[list[TAtom]]] = []
         for form in forms:
             raw.append(
                 [
-                    [matcher.timed(a, with_operands)[0] if _is_timed(store, a) else a for a in cube]
+                    [matcher.timed(a, with_operands)[0] if a in timed else a for a in cube]
                     for cube in store.forms[form]
                 ]
             )
@@ -290,14 +288,17 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
     with :class:`mitlc.limits.LimitError`.
     """
     deadline = Deadline.none() if deadline is None else deadline
-    if not _has_timed_atoms(translation):
+    timed = _timed_ids(translation)
+    if not timed:
         # Without clocks a location is its forms, which name one state each: no fewer
         # locations than states, so folding cannot pay.
         return unfolded(translation, deadline=deadline)
     unfold: set[LocKey] = set()
     shapes, labels = Shapes(), dict[tuple[tuple[int, int], ...], Letters]()  # for every try
     for _ in range(MAX_REFINEMENTS):
-        folder = _Folder(translation, unfold, deadline, shapes=shapes, labels=labels)
+        folder = _Folder(
+            translation, unfold, deadline, shapes=shapes, labels=labels, timed_ids=timed
+        )
         try:
             folder.explore()
         except _NotWorthFolding:
@@ -313,9 +314,10 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
     return _unfolded(_Folder(translation, set(), deadline, True, shapes=shapes, labels=labels))
 
 
-def _has_timed_atoms(translation: Translation) -> bool:
-    """Whether the store has a bounded atom (a state that holds one may need a clock)."""
-    return any(kind != LIT and hi != INF for kind, _, hi, _, _ in translation.store.atoms)
+def _timed_ids(translation: Translation) -> frozenset[int]:
+    """The bounded atoms of the store: those that take a clock in a state that holds them."""
+    atoms = translation.store.atoms
+    return frozenset(i for i, (kind, _, hi, _, _) in enumerate(atoms) if kind != LIT and hi != INF)
 
 
 def unfolded(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:

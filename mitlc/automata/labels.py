@@ -19,7 +19,6 @@ with HOA's proposition indices (``0&!1 | 2``).
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 MAX_EXACT_PROPS = 10
@@ -67,11 +66,11 @@ def submasks(mask: int) -> Iterator[int]:
         sub = (sub - mask) & mask
 
 
-@dataclass(frozen=True, slots=True)
-class Letters:
+class Letters(NamedTuple):
     """A set of letters: those whose valuation of the propositions ``support`` is in ``members``
     (each member a letter inside ``support``). Canonical: ``support`` holds only propositions the
-    set depends on, so two equal sets are equal values (:meth:`of`)."""
+    set depends on, so two equal sets are equal values (:meth:`of`). A named tuple, made
+    quickly: a folding makes one per class of letters."""
 
     support: int
     members: frozenset[int]
@@ -81,6 +80,8 @@ class Letters:
         """The letters ``l`` with ``l & mask`` in ``members`` (letters inside ``mask``), with the
         propositions that do not matter dropped from the support."""
         kept = frozenset(members)
+        if len(kept) <= 1:  # one valuation depends on every proposition (none: on none)
+            return Letters(mask if kept else 0, kept)
         bits = mask
         while bits:
             bit = bits & -bits
