@@ -58,7 +58,7 @@ class Shapes:
     ``k``), for the classes of any group of rows."""
 
     def __init__(self) -> None:
-        self.diagrams = Diagrams()
+        self._diagrams: Diagrams | None = None  # made when first needed
         self._nodes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
         self._single: dict[tuple[int, tuple[tuple[int, int, int], ...]], _Classes] = {}
 
@@ -110,7 +110,9 @@ class Shapes:
         return LetterClasses(position, *single)
 
     def _by_diagram(self, position: tuple[int, ...], shapes: list[Row]) -> LetterClasses:
-        d = self.diagrams
+        if self._diagrams is None:
+            self._diagrams = Diagrams()
+        d = self._diagrams
         together = d.leaf(())
         for row in shapes:
             node = self._nodes.get(_shape(row))
