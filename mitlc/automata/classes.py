@@ -64,8 +64,9 @@ class Shapes:
 
     def classes(self, rows: Sequence[Row]) -> LetterClasses:
         """The classes of letters ``rows`` tell apart together (module docstring)."""
+        first = rows[0]
         if len(rows) == 1:  # most locations: one state
-            return self._of_one(rows[0], (0,))
+            return self._of_one(first, (0,))
         distinct: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
         shapes: list[Row] = []
         position = []

@@ -71,20 +71,26 @@ class Row(NamedTuple):
     def export(diagrams: Diagrams, node: int, relabel: Callable[[Any], tuple[int, int]]) -> Row:
         """The row of ``node`` of ``diagrams``, its terminals relabelled ``(target, marks)``
         (terminals relabelled alike are merged, and the diagram kept reduced)."""
-        if diagrams.var[node] == LEAF:
-            return Row.constant(*relabel(diagrams.values[node]))
+        var, values = diagrams.var, diagrams.values
+        if var[node] == LEAF:
+            return Row.constant(*relabel(values[node]))
+        low, high = diagrams.low[node], diagrams.high[node]
+        if var[low] == LEAF and var[high] == LEAF:  # one test (most rows): no walk
+            (t0, m0), (t1, m1) = relabel(values[low]), relabel(values[high])
+            if (t0, m0) == (t1, m1):
+                return Row.constant(t0, m0)
+            return Row(0, ((var[node], ~0, ~1),), (t0, t1), (m0, m1))
         outcomes: dict[tuple[int, int], int] = {}
         tests: list[tuple[int, int, int]] = []
         root = _export(diagrams, node, relabel, outcomes, tests)
         targets, marks = zip(*outcomes, strict=True)
         return Row(root, tuple(tests), targets, marks)
 
-    def renumbered(self, state: Sequence[int], one_to_one: bool = False) -> Row:
+    def renumbered(self, state: Sequence[int]) -> Row:
         """This row with each target ``t`` renamed ``state[t]`` (transitions that come to
-        agree are merged, and the diagram kept reduced; none can when ``one_to_one``: no two
-        states are renamed alike)."""
+        agree are merged, and the diagram kept reduced)."""
         targets = tuple(map(state.__getitem__, self.targets))
-        if one_to_one or len(set(zip(targets, self.marks, strict=True))) == len(targets):
+        if len(set(zip(targets, self.marks, strict=True))) == len(targets):
             return Row(self.root, self.tests, targets, self.marks)
         diagrams = Diagrams()  # rare: dead states merged into the sink
         node = self.into(diagrams, lambda k: (targets[k], self.marks[k]))
@@ -156,14 +162,6 @@ def _export(
     are numbered by least letter), each test made once its branches are (``~f`` on the stack:
     both branches of ``f`` are done)."""
     var, low, high, values = diagrams.var, diagrams.low, diagrams.high, diagrams.values
-    lo, hi = low[node], high[node]
-    if var[lo] == LEAF and var[hi] == LEAF:  # one test (most rows): no walk
-        lo = ~outcomes.setdefault(relabel(values[lo]), 0)
-        hi = ~outcomes.setdefault(relabel(values[hi]), len(outcomes))
-        if lo == hi:
-            return lo
-        tests.append((var[node], lo, hi))
-        return 0
     inner: dict[tuple[int, int, int], int] = {}
     memo: dict[int, int] = {}
     stack = [node]

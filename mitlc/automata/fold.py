@@ -148,15 +148,17 @@ class _Folder:
         self, state: int, source: LocKey | None, values: dict[int, int], step: int
     ) -> tuple[LocKey, dict[int, int], tuple[int, ...]]:
         """The location and valuation of ``state`` reached from ``source`` (None: the start)."""
-        forms = self.translation.keys[state].forms
-        if not forms or self.untimed:  # no atoms or no clocks: the location is the state's
-            return self.location_key(state, ()), {}, ()
-        if not values:  # no clock runs: what the state's own atoms make of it, made once
-            found = self.unclocked.get((state, step))
-            if found is None:
-                found = self.unclocked[(state, step)] = self._retemplate(state, None, {}, step)
-            return found
-        return self._retemplate(state, source, values, step)
+        if values and self.translation.keys[state].forms:
+            return self._retemplate(state, source, values, step)
+        # No clock runs, or no atoms to give one: what the state itself makes, made once.
+        found = self.unclocked.get((state, step))
+        if found is None:
+            if not self.translation.keys[state].forms or self.untimed:
+                found = self.location_key(state, ()), {}, ()  # no atoms or no clocks
+            else:
+                found = self._retemplate(state, None, {}, step)
+            self.unclocked[(state, step)] = found
+        return found
 
     def _retemplate(
         self, state: int, source: LocKey | None, values: dict[int, int], step: int
@@ -294,7 +296,8 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
         # locations than states, so folding cannot pay.
         return unfolded(translation, deadline=deadline)
     unfold: set[LocKey] = set()
-    shapes, labels = Shapes(), dict[tuple[tuple[int, int], ...], Letters]()  # for every try
+    shapes = Shapes()  # with the labels, made once for every try
+    labels: dict[tuple[tuple[int, int], ...], Letters] = {}
     for _ in range(MAX_REFINEMENTS):
         folder = _Folder(
             translation, unfold, deadline, shapes=shapes, labels=labels, timed_ids=timed

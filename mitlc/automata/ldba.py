@@ -190,12 +190,12 @@ class _Builder:
         remap = [-1 if sink is None else sink] * len(keys)
         for old, new in new_id.items():
             remap[old] = new
-        moved = {old for old, new in enumerate(remap) if old != new}  # most often: the sink
-        one_to_one = len(set(remap)) == len(remap)  # no dead state but the sink
-        rows = [
-            row if moved.isdisjoint(row.targets) else row.renumbered(remap, one_to_one)
-            for row in (explored.rows[old] for old in order)
-        ]
+        found = [explored.rows[old] for old in order]
+        if len(set(remap)) == len(remap):  # most often: no dead state but the sink
+            get = remap.__getitem__
+            rows = [Row(r.root, r.tests, tuple(map(get, r.targets)), r.marks) for r in found]
+        else:
+            rows = [row.renumbered(remap) for row in found]
         states = []
         for old in order:
             self.deadline.check()
