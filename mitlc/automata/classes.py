@@ -61,6 +61,7 @@ class Shapes:
         self._diagrams: Diagrams | None = None  # made when first needed
         self._nodes: dict[tuple[int, tuple[tuple[int, int, int], ...]], int] = {}
         self._single: dict[tuple[int, tuple[tuple[int, int, int], ...]], _Classes] = {}
+        self._several: dict[tuple[tuple[int, tuple[tuple[int, int, int], ...]], ...], _Classes] = {}
 
     def classes(self, rows: Sequence[Row]) -> LetterClasses:
         """The classes of letters ``rows`` tell apart together (module docstring)."""
@@ -79,12 +80,17 @@ class Shapes:
             position.append(found)
         if len(shapes) == 1:
             return self._of_one(shapes[0], tuple(position))
-        reads = 0
-        for row in shapes:
-            reads |= row.reads
-        if reads.bit_count() <= SMALL_READS:
-            return _by_letter(tuple(position), shapes, reads)
-        return self._by_diagram(tuple(position), shapes)
+        key = tuple(distinct)
+        several = self._several.get(key)
+        if several is None:  # locations of one automaton often share their states' shapes
+            reads = 0
+            for row in shapes:
+                reads |= row.reads
+            if reads.bit_count() <= SMALL_READS:
+                several = self._several[key] = _by_letter(shapes, reads)
+            else:
+                several = self._several[key] = self._by_diagram(shapes)
+        return LetterClasses(tuple(position), *several)
 
     def _of_one(self, row: Row, position: tuple[int, ...]) -> LetterClasses:
         """One shape: its transitions are the classes, its paths their cubes (made once)."""
@@ -110,7 +116,7 @@ class Shapes:
             single = self._single[_shape(row)] = (transitions, tuple(map(tuple, cubes)), letters)
         return LetterClasses(position, *single)
 
-    def _by_diagram(self, position: tuple[int, ...], shapes: list[Row]) -> LetterClasses:
+    def _by_diagram(self, shapes: list[Row]) -> _Classes:
         if self._diagrams is None:
             self._diagrams = Diagrams()
         d = self._diagrams
@@ -124,20 +130,22 @@ class Shapes:
         cubes: list[list[tuple[int, int]]] = [[] for _ in order]
         for care, value, each in d.paths(together):
             cubes[order[each]].append((care, value))
-        letters = tuple(map(Letters.of_cubes, cubes))
-        return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)), letters)
+        return tuple(order), tuple(map(tuple, cubes)), tuple(map(Letters.of_cubes, cubes))
 
 
-def _by_letter(position: tuple[int, ...], shapes: list[Row], reads: int) -> LetterClasses:
+def _by_letter(shapes: list[Row], reads: int) -> _Classes:
+    letters = list(submasks(reads))  # ascending: classes by least letter
+    columns = [[row.transition(letter) for letter in letters] for row in shapes]
     order: dict[tuple[int, ...], int] = {}
-    cubes: list[list[tuple[int, int]]] = []
-    transition = [row.transition for row in shapes]
-    for letter in submasks(reads):  # ascending: classes by least letter
-        each = tuple([read(letter) for read in transition])
+    members: list[list[int]] = []
+    for letter, each in zip(letters, zip(*columns, strict=True), strict=True):
         found = order.get(each)
         if found is None:
-            found = order[each] = len(cubes)
-            cubes.append([])
-        cubes[found].append((reads, letter))
-    letters = tuple(Letters.of(reads, (value for _, value in each)) for each in cubes)
-    return LetterClasses(position, tuple(order), tuple(map(tuple, cubes)), letters)
+            found = order[each] = len(members)
+            members.append([])
+        members[found].append(letter)
+    return (
+        tuple(order),
+        tuple(tuple((reads, letter) for letter in each) for each in members),
+        tuple(Letters.of(reads, each) for each in members),
+    )

@@ -66,22 +66,25 @@ def shift(base_lo: int, base_hi: int, age: int) -> tuple[int, int]:
     return max(base_lo - age, 0), base_hi - age
 
 
-@dataclass(slots=True)
 class _Matcher:
     """Timed atoms of the source location, keyed by what their successor must look like."""
 
-    store: TermStore
-    by_signature: dict[tuple[object, ...], tuple[int, int, int, int]] = field(default_factory=dict)
-    kept: dict[int, int] = field(default_factory=dict)
-    fresh_used: bool = False
+    __slots__ = ("by_signature", "fresh_used", "kept", "store")
+
+    def __init__(self, store: TermStore) -> None:
+        self.store = store
+        self.by_signature: dict[tuple[object, ...], tuple[int, int, int, int]] = {}
+        self.kept: dict[int, int] = {}
+        self.fresh_used = False
 
     def add(self, atom: TimedAtom, values: dict[int, int], step: int, with_operands: bool) -> None:
         kind, left, right, lo, hi, clock = atom
-        now = shift(lo, hi, values[clock] + step)
-        signature = (kind, left, right, *now) if with_operands else (kind, *now)
+        age = values[clock] + step
+        now_lo, now_hi = shift(lo, hi, age)
+        signature = (kind, left, right, now_lo, now_hi) if with_operands else (kind, now_lo, now_hi)
         found = self.by_signature.get(signature)
         if found is None or clock < found[2]:
-            self.by_signature[signature] = (lo, hi, clock, values[clock] + step)
+            self.by_signature[signature] = (lo, hi, clock, age)
 
     def timed(self, atom_id: int, with_operands: bool) -> tuple[TAtom, int | None]:
         """The timed atom for digital atom ``atom_id`` and its clock's value (None: fresh)."""
@@ -122,6 +125,8 @@ class _Folder:
     jumps: dict[tuple[int, Valuation], frozenset[tuple[LocKey, tuple[int, ...]]]] = field(
         default_factory=dict
     )
+    timed_atoms: dict[LocKey, tuple[TimedAtom, ...]] = field(default_factory=dict)
+    """:meth:`_timed_of` each location key met."""
     timed_ids: frozenset[int] = frozenset()
     """The bounded atoms of the store (:func:`_timed_ids`)."""
     acceptance: dict[int, tuple[int, ...]] = field(default_factory=dict)
@@ -167,8 +172,8 @@ class _Folder:
         store = self.store
         with_operands = step == 1
         matcher = _Matcher(store)
-        for template in source.templates if source is not None else ():
-            for atom in _timed_atoms(template):
+        if source is not None:
+            for atom in self._timed_of(source):
                 matcher.add(atom, values, step, with_operands)
         timed = self.timed_ids
         raw: list[list[list[TAtom]]] = []
@@ -185,13 +190,27 @@ class _Folder:
         if not matcher.fresh_used:  # every timed atom keeps its clock
             templates = tuple(frozenset(frozenset(cube) for cube in form) for form in raw)
             return self.location_key(state, templates), new_values, ()
-        fresh = min(c for c in range(len(matcher.kept) + 1) if c not in matcher.kept)
+        fresh = 0
+        while fresh in matcher.kept:  # the lowest free clock
+            fresh += 1
         templates = tuple(
-            frozenset(frozenset(_with_clock(a, fresh) for a in cube) for cube in form)
+            frozenset(
+                frozenset(
+                    (*a[:5], fresh) if isinstance(a, tuple) and a[5] == -1 else a for a in cube
+                )
+                for cube in form
+            )
             for form in raw
         )
         new_values[fresh] = 0
         return self.location_key(state, templates), new_values, (fresh,)
+
+    def _timed_of(self, key: LocKey) -> tuple[TimedAtom, ...]:
+        """The timed atoms of a location's templates."""
+        found = self.timed_atoms.get(key)
+        if found is None:
+            found = self.timed_atoms[key] = tuple(a for t in key.templates for a in _timed_atoms(t))
+        return found
 
     def explore(self) -> None:
         automaton = self.translation.automaton
@@ -263,12 +282,6 @@ class _Folder:
 
 def _valuation(values: dict[int, int]) -> Valuation:
     return tuple(sorted(values.items()))
-
-
-def _with_clock(atom: TAtom, fresh: int) -> TAtom:
-    if isinstance(atom, tuple) and atom[5] == -1:
-        return (*atom[:5], fresh)
-    return atom
 
 
 class _NotWorthFolding(Exception):
