@@ -19,91 +19,28 @@ covered states disagree on their jumps is unfolded into one location per state.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import NamedTuple, TypeAlias
 
 from mitlc.automata.classes import LetterClasses, Shapes
 from mitlc.automata.digital import Row, Verdict
 from mitlc.automata.guards import partition
 from mitlc.automata.labels import Letters
-from mitlc.automata.ldba import StateKind, Translation
+from mitlc.automata.ldba import Translation
+from mitlc.automata.templates import (
+    LocKey,
+    Matcher,
+    Outcome,
+    TAtom,
+    Template,
+    TimedAtom,
+    Valuation,
+    key_text,
+    timed_atoms,
+    valuation_of,
+)
 from mitlc.automata.terms import INF, LIT, TermStore
-from mitlc.automata.text import atom_text, form_text, timed_atom_text
 from mitlc.automata.tldgba import Edge, Guard, Jump, Location, Tldgba
 from mitlc.limits import Deadline
-
-TimedAtom: TypeAlias = tuple[str, int, int, int, int, int]
-"""``(kind, left, right, base_lo, base_hi, clock)``."""
-TAtom: TypeAlias = int | TimedAtom
-"""An untimed atom (its id) or a timed atom."""
-Template: TypeAlias = frozenset[frozenset[TAtom]]
-Valuation: TypeAlias = tuple[tuple[int, int], ...]
-"""``((clock, value), ...)`` for the clocks a location uses, sorted by clock."""
-
-
-class LocKey(NamedTuple):
-    """A location: the kind of its states, their forms as templates, and the tokens' seeds;
-    ``state`` names the one digital state of an unfolded location (a named tuple: hashed and
-    compared in C)."""
-
-    kind: StateKind
-    templates: tuple[Template, ...] = ()
-    seeds: tuple[tuple[int, int], ...] = ()
-    state: int | None = None
-
-    def folded(self) -> LocKey:
-        """This location before any unfolding."""
-        return LocKey(self.kind, self.templates, self.seeds)
-
-
-Outcome: TypeAlias = tuple[LocKey, tuple[int, ...], int]
-"""``(target location, reset clocks, marks)``."""
-
-
-def shift(base_lo: int, base_hi: int, age: int) -> tuple[int, int]:
-    """The interval of an atom spawned with ``[base_lo, base_hi]``, ``age`` steps later."""
-    return max(base_lo - age, 0), base_hi - age
-
-
-class _Matcher:
-    """Timed atoms of the source location, keyed by what their successor must look like."""
-
-    __slots__ = ("by_signature", "fresh_used", "kept", "store")
-
-    def __init__(self, store: TermStore) -> None:
-        self.store = store
-        self.by_signature: dict[tuple[object, ...], tuple[int, int, int, int]] = {}
-        self.kept: dict[int, int] = {}
-        self.fresh_used = False
-
-    def add(self, atom: TimedAtom, values: dict[int, int], step: int, with_operands: bool) -> None:
-        kind, left, right, lo, hi, clock = atom
-        age = values[clock] + step
-        now_lo, now_hi = shift(lo, hi, age)
-        signature = (kind, left, right, now_lo, now_hi) if with_operands else (kind, now_lo, now_hi)
-        found = self.by_signature.get(signature)
-        if found is None or clock < found[2]:
-            self.by_signature[signature] = (lo, hi, clock, age)
-
-    def timed(self, atom_id: int, with_operands: bool) -> tuple[TAtom, int | None]:
-        """The timed atom for digital atom ``atom_id`` and its clock's value (None: fresh)."""
-        kind, lo, hi, left, right = self.store.atoms[atom_id]
-        signature = (kind, left, right, lo, hi) if with_operands else (kind, lo, hi)
-        found = self.by_signature.get(signature)
-        if found is None:
-            self.fresh_used = True
-            return (kind, left, right, lo, hi, -1), None
-        base_lo, base_hi, clock, value = found
-        self.kept[clock] = value
-        return (kind, left, right, base_lo, base_hi, clock), value
-
-
-def _timed_atoms(template: Template) -> Iterable[TimedAtom]:
-    for cube in template:
-        for atom in cube:
-            if isinstance(atom, tuple):
-                yield atom
 
 
 @dataclass(slots=True)
@@ -171,7 +108,7 @@ class _Folder:
         forms = self.translation.keys[state].forms
         store = self.store
         with_operands = step == 1
-        matcher = _Matcher(store)
+        matcher = Matcher(store)
         if source is not None:
             for atom in self._timed_of(source):
                 matcher.add(atom, values, step, with_operands)
@@ -209,13 +146,13 @@ class _Folder:
         """The timed atoms of a location's templates."""
         found = self.timed_atoms.get(key)
         if found is None:
-            found = self.timed_atoms[key] = tuple(a for t in key.templates for a in _timed_atoms(t))
+            found = self.timed_atoms[key] = tuple(a for t in key.templates for a in timed_atoms(t))
         return found
 
     def explore(self) -> None:
         automaton = self.translation.automaton
         start_key, start_values, _ = self.retemplate(automaton.initial, None, {}, 0)
-        start_valuation = _valuation(start_values)
+        start_valuation = valuation_of(start_values)
         queue = deque([(automaton.initial, start_key, start_values, start_valuation)])
         # A symmetric template (two atoms alike but for their clocks) covers a state under
         # several valuations, so a visit is a (state, location, valuation) triple.
@@ -237,7 +174,7 @@ class _Folder:
                 if found is None:
                     t_key, t_values, resets = self.retemplate(target, key, values, 1)
                     found = reached[target] = (t_key, resets)
-                    visit = (target, t_key, _valuation(t_values))
+                    visit = (target, t_key, valuation_of(t_values))
                     if visit not in seen:
                         seen.add(visit)
                         queue.append((target, t_key, t_values, visit[2]))
@@ -247,7 +184,7 @@ class _Folder:
             for target in jumps.get(state, ()):
                 t_key, t_values, resets = self.retemplate(target, key, values, 0)
                 jumped.add((t_key, resets))
-                visit = (target, t_key, _valuation(t_values))
+                visit = (target, t_key, valuation_of(t_values))
                 if visit not in seen:
                     seen.add(visit)
                     queue.append((target, t_key, t_values, visit[2]))
@@ -268,7 +205,7 @@ class _Folder:
         """Folding stops paying with as many locations as states, or too many clocks."""
         if len(self.locations) >= len(self.translation.automaton.states):
             return True
-        return any(a[5] >= MAX_CLOCKS for t in key.templates for a in _timed_atoms(t))
+        return any(a[5] >= MAX_CLOCKS for t in key.templates for a in timed_atoms(t))
 
     def conflicts(self) -> set[LocKey]:
         """Locations whose covered states disagree on their epsilon jumps."""
@@ -278,10 +215,6 @@ class _Folder:
             if len(seen) > 1:
                 bad.add(key.folded())
         return bad
-
-
-def _valuation(values: dict[int, int]) -> Valuation:
-    return tuple(sorted(values.items()))
 
 
 class _NotWorthFolding(Exception):
@@ -350,7 +283,7 @@ def _unfolded(folder: _Folder) -> Tldgba:
 def _build(folder: _Folder) -> Tldgba:
     automaton = folder.translation.automaton
     store = folder.store
-    timed = [atom for key in folder.locations for t in key.templates for atom in _timed_atoms(t)]
+    timed = [atom for key in folder.locations for t in key.templates for atom in timed_atoms(t)]
     bound = max((atom[4] for atom in timed), default=1)
     num_clocks = 1 + max((atom[5] for atom in timed), default=-1)
     locations, edges, jumps = [], [], []
@@ -358,7 +291,7 @@ def _build(folder: _Folder) -> Tldgba:
     sink: Outcome | None = None if sink_key is None else (sink_key, (), 0)
     for key, loc in folder.locations.items():
         folder.deadline.check()
-        clocks = sorted({a[5] for t in key.templates for a in _timed_atoms(t)})
+        clocks = sorted({a[5] for t in key.templates for a in timed_atoms(t)})
         states = set(folder.covered[loc].values())
         verdicts: set[Verdict] = {automaton.states[s].verdict for s in states}
         verdict: Verdict = verdicts.pop() if len(verdicts) == 1 else "pending"
@@ -366,7 +299,7 @@ def _build(folder: _Folder) -> Tldgba:
         text = (
             automaton.states[key.state].obligation
             if key.state is not None and not key.templates
-            else _key_text(store, key)
+            else key_text(store, key)
         )
         locations.append(Location(loc, f"q{loc}", text, component, verdict, tuple(clocks)))
         edges.extend(_edges(folder, loc, clocks, bound, sink))
@@ -432,27 +365,3 @@ def _union(folder: _Folder, found: LetterClasses, members: list[int]) -> Letters
 
 def _edge_order(edge: Edge) -> tuple[object, ...]:
     return (edge.source, edge.guard, edge.label.least, edge.target)
-
-
-def _key_text(store: TermStore, key: LocKey) -> str:
-    if key.kind in ("sink", "true"):
-        return "false" if key.kind == "sink" else "true"
-    parts = [_template_text(store, key.templates[0])]
-    parts += [f"G F ({form_text(store, seed)})" for _, seed in key.seeds]
-    return " & ".join(p for p in parts if p != "true") or "true"
-
-
-def _template_text(store: TermStore, template: Template) -> str:
-    cubes = sorted(template, key=lambda c: (len(c), sorted(map(str, c))))
-    if not cubes:
-        return "false"
-    texts = []
-    for cube in cubes:
-        atoms = sorted(
-            timed_atom_text(store, *a) if isinstance(a, tuple) else atom_text(store, a)
-            for a in cube
-        )
-        texts.append(" & ".join(atoms) if atoms else "true")
-    if len(texts) == 1:
-        return texts[0]
-    return " | ".join(f"({t})" if " & " in t else t for t in texts)
