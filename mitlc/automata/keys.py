@@ -184,7 +184,15 @@ class Rules:
             split = self.progression.split(form)
             together = d.apply("tuple", lambda t, v: (*t, v), together, split)
         advance = self.advance
-        return Transitions(together, lambda progressed: advance(key, progressed))
+        outcomes: dict[tuple[int, ...], tuple[Key, int]] = {}
+
+        def outcome(progressed: tuple[int, ...]) -> tuple[Key, int]:
+            found = outcomes.get(progressed)  # a caller may ask for a terminal again (lazy)
+            if found is None:
+                found = outcomes[progressed] = advance(key, progressed)
+            return found
+
+        return Transitions(together, outcome)
 
     def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
         """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`."""
