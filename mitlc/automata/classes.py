@@ -108,12 +108,10 @@ class Shapes:
             )
         single = self._single.get(_shape(row))
         if single is None:
-            cubes: list[list[tuple[int, int]]] = [[] for _ in row.targets]
-            for care, value, k in row.paths():
-                cubes[k].append((care, value))
+            cubes = tuple(row.cubes())
             transitions = tuple((k,) for k in range(len(cubes)))
             letters = tuple(map(Letters.of_cubes, cubes))
-            single = self._single[_shape(row)] = (transitions, tuple(map(tuple, cubes)), letters)
+            single = self._single[_shape(row)] = (transitions, cubes, letters)
         return LetterClasses(position, *single)
 
     def _by_diagram(self, shapes: list[Row]) -> _Classes:

@@ -140,14 +140,18 @@ class Row(NamedTuple):
             stack += [(high, care | bit, value | bit), (low, care | bit, value)]
         return out
 
+    def cubes(self) -> list[tuple[tuple[int, int], ...]]:
+        """Per transition, its letters as disjoint cubes ``(care, value)`` (its paths)."""
+        found: list[list[tuple[int, int]]] = [[] for _ in self.targets]
+        for care, value, k in self.paths():
+            found[k].append((care, value))
+        return [tuple(each) for each in found]
+
     def edges(self) -> list[tuple[int, int, Letters]]:
         """``(target, marks, letters)`` per transition, by their least letter."""
-        cubes: list[list[tuple[int, int]]] = [[] for _ in self.targets]
-        for care, value, k in self.paths():
-            cubes[k].append((care, value))
         return [
             (t, m, Letters.of_cubes(c))
-            for t, m, c in zip(self.targets, self.marks, cubes, strict=True)
+            for t, m, c in zip(self.targets, self.marks, self.cubes(), strict=True)
         ]
 
 
