@@ -77,10 +77,6 @@ class Diagrams:
         self.values.append(value)
         return len(self.var) - 1
 
-    def value(self, f: int) -> Any:
-        """The value of a terminal."""
-        return self.values[f]
-
     # The recursions below are methods, not nested functions: a nested recursive function is a
     # reference cycle, left for the cyclic garbage collector on every call.
 
@@ -173,16 +169,3 @@ class Diagrams:
             bit = 1 << var[node]
             stack.append((high[node], care | bit, value | bit))
             stack.append((low[node], care | bit, value))
-
-    def support(self, f: int) -> int:
-        """The mask of the propositions ``f`` tests."""
-        var, low, high = self.var, self.low, self.high
-        mask, seen, todo = 0, set(), [f]
-        while todo:
-            node = todo.pop()
-            if node in seen or var[node] == LEAF:
-                continue
-            seen.add(node)
-            mask |= 1 << var[node]
-            todo += [low[node], high[node]]
-        return mask
