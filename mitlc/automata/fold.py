@@ -63,7 +63,7 @@ class _Folder:
         default_factory=dict
     )
     timed_atoms: dict[LocKey, tuple[TimedAtom, ...]] = field(default_factory=dict)
-    """:meth:`_timed_of` each location key met."""
+    """:meth:`timed_of` each location key met."""
     timed_ids: frozenset[int] = frozenset()
     """The bounded atoms of the store (:func:`_timed_ids`)."""
     acceptance: dict[int, tuple[int, ...]] = field(default_factory=dict)
@@ -110,7 +110,7 @@ class _Folder:
         with_operands = step == 1
         matcher = Matcher(store)
         if source is not None:
-            for atom in self._timed_of(source):
+            for atom in self.timed_of(source):
                 matcher.add(atom, values, step, with_operands)
         timed = self.timed_ids
         raw: list[list[list[TAtom]]] = []
@@ -142,7 +142,7 @@ class _Folder:
         new_values[fresh] = 0
         return self.location_key(state, templates), new_values, (fresh,)
 
-    def _timed_of(self, key: LocKey) -> tuple[TimedAtom, ...]:
+    def timed_of(self, key: LocKey) -> tuple[TimedAtom, ...]:
         """The timed atoms of a location's templates."""
         found = self.timed_atoms.get(key)
         if found is None:
@@ -205,7 +205,7 @@ class _Folder:
         """Folding stops paying with as many locations as states, or too many clocks."""
         if len(self.locations) >= len(self.translation.automaton.states):
             return True
-        return any(a[5] >= MAX_CLOCKS for t in key.templates for a in timed_atoms(t))
+        return any(a[5] >= MAX_CLOCKS for a in self.timed_of(key))
 
     def conflicts(self) -> set[LocKey]:
         """Locations whose covered states disagree on their epsilon jumps."""
@@ -283,7 +283,7 @@ def _unfolded(folder: _Folder) -> Tldgba:
 def _build(folder: _Folder) -> Tldgba:
     automaton = folder.translation.automaton
     store = folder.store
-    timed = [atom for key in folder.locations for t in key.templates for atom in timed_atoms(t)]
+    timed = [atom for key in folder.locations for atom in folder.timed_of(key)]
     bound = max((atom[4] for atom in timed), default=1)
     num_clocks = 1 + max((atom[5] for atom in timed), default=-1)
     locations, edges, jumps = [], [], []
@@ -291,7 +291,7 @@ def _build(folder: _Folder) -> Tldgba:
     sink: Outcome | None = None if sink_key is None else (sink_key, (), 0)
     for key, loc in folder.locations.items():
         folder.deadline.check()
-        clocks = sorted({a[5] for t in key.templates for a in timed_atoms(t)})
+        clocks = sorted({a[5] for a in folder.timed_of(key)})
         states = set(folder.covered[loc].values())
         verdicts: set[Verdict] = {automaton.states[s].verdict for s in states}
         verdict: Verdict = verdicts.pop() if len(verdicts) == 1 else "pending"
