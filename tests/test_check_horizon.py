@@ -10,7 +10,7 @@ import pytest
 from mitlc.automata import translate
 from mitlc.check import solve
 from mitlc.check.solve import pmax_horizon
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product, product_ends
 from mitlc.syntax import to_text
 from mitlc.worlds.model import FloatArray, Sparse
 from tests.test_check import formulas, random_world
@@ -33,8 +33,10 @@ def plain_horizon(product: Product, horizon: int) -> list[FloatArray]:
             values[:, source] = np.maximum(values[:, source], values[:, target])
         return values
 
-    start = np.zeros((masks, n))
-    start[masks - 1] = 1.0
+    # an episode that stops pending succeeds by its state's end value, or by a completed round
+    start = np.tile(product_ends(product).astype(np.float64), (masks, 1))
+    if product.num_sets:
+        start[masks - 1] = 1.0
     tables = [settle(start)]
     for _ in range(horizon):
         last, step = tables[-1], np.full((masks, n), -1.0)
@@ -75,8 +77,8 @@ def test_incremental_steps_give_the_plain_tables(
 
 def test_a_jump_passes_a_late_change_back(monkeypatch: pytest.MonkeyPatch) -> None:
     """``x -> s``, and ``s`` jumps to a chain ``t -> u -> w -> violated`` (its own move is to
-    violated too): with no sets, success is not being violated within the horizon, which ``s``
-    loses through the jump at three steps, and ``x`` at four, although nothing ``s`` moves to
+    violated too): with no sets and every state's end value true (a safety task), success is
+    not being violated within the horizon, which ``s`` loses through the jump at three steps, and ``x`` at four, although nothing ``s`` moves to
     has changed then."""
     monkeypatch.setattr(solve, "FULL_STEP", 2.0)
     # states: violated, satisfied, x, s, t, u, w; choices: one each, s a move and a jump
@@ -90,6 +92,7 @@ def test_a_jump_passes_a_late_change_back(monkeypatch: pytest.MonkeyPatch) -> No
         marks=np.zeros(8, dtype=np.int64),
         transitions=Sparse(np.arange(9), targets, np.ones(8)),
         num_sets=0,
+        end=np.array([False, True, True, True, True, True, True]),
     )
     _, history = pmax_horizon(product, 6)
     assert [float(h[0, 3]) for h in history] == [1, 1, 1, 0, 0, 0, 0]

@@ -277,6 +277,9 @@ class _Parity:
     def obligation(self, state: int) -> str:
         return "false" if state == 3 else f"count {state}"
 
+    def end(self, state: int) -> bool:
+        return False
+
 
 def test_the_monitor_handles_alphabets_past_its_dense_table() -> None:
     automaton = _Parity()

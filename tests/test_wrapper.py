@@ -351,6 +351,9 @@ class Lazy:
     def jumps(self, state: int) -> tuple[int, ...]:
         return self._a.jumps(state)
 
+    def end(self, state: int) -> bool:
+        return self._a.end(state)
+
 
 def test_a_lazy_automaton_needs_a_bound_and_keeps_to_it() -> None:
     lazy = Lazy(translate(parse("!goal U[8,10] goal")))

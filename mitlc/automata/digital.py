@@ -31,15 +31,19 @@ Verdict: TypeAlias = Literal["satisfied", "violated", "pending"]
 
 @dataclass(frozen=True, slots=True)
 class DigitalState:
-    """One state: the obligation still owed (a formula), its component and its verdict.
+    """One state: the obligation still owed (a formula), its component, its verdict and its
+    value at the end of a trace.
 
     ``verdict`` is ``satisfied`` when every continuation is accepted, ``violated`` when none is
-    (the one rejecting sink), ``pending`` otherwise.
+    (the one rejecting sink), ``pending`` otherwise. ``end`` is whether a finite trace that
+    stops in this state satisfies the formula (:mod:`mitlc.automata.ends`): what an episode
+    still pending at its end is judged by (:func:`mitlc.task.rules.success`).
     """
 
     obligation: str
     component: Component
     verdict: Verdict
+    end: bool = False
 
 
 class Row(NamedTuple):
@@ -309,6 +313,11 @@ class DigitalAutomaton:
     def jumps(self, state: int) -> tuple[int, ...]:
         """The targets of the epsilon jumps leaving ``state``, by target."""
         return self.jumps_from(state)
+
+    def end(self, state: int) -> bool:
+        """Whether a trace that stops in ``state`` satisfies the formula
+        (:attr:`DigitalState.end`)."""
+        return self.states[state].end
 
     def obligation(self, state: int) -> str:
         """What ``state`` still owes."""

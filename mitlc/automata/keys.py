@@ -17,6 +17,7 @@ from typing import Any, Literal, NamedTuple, TypeAlias
 
 from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
 from mitlc.automata.digital import DigitalState, Verdict
+from mitlc.automata.ends import end_value
 from mitlc.automata.normalize import normalize
 from mitlc.automata.progress import Progression
 from mitlc.automata.recurrence import Recurrence, split_recurrence
@@ -81,9 +82,12 @@ class Rules:
     num_sets: int
     recurrence: Recurrence | None = None
     substitution: Substitution = field(init=False)
+    ends: dict[int, bool] = field(init=False)
+    """Memo of :func:`mitlc.automata.ends.end_value`."""
 
     def __post_init__(self) -> None:
         self.substitution = Substitution(self.store)
+        self.ends = {}
 
     @staticmethod
     def of(formula: ast.Formula, store: TermStore | None = None) -> Rules:
@@ -205,16 +209,19 @@ class Rules:
         if key == SINK:
             return DigitalState("false", "initial", "violated")
         if key == TRUE:
-            return DigitalState("true", "initial", "satisfied")
+            return DigitalState("true", "initial", "satisfied", True)
         if key.kind == "initial":
-            return DigitalState(form_text(self.store, key.forms[0]), "initial", "pending")
-        if key.kind == "recurrence":
+            owed = key.forms[0]
+        elif key.kind == "recurrence":
             assert self.recurrence is not None
             owed = self.recurrence.obligation(self.store, key.forms)
-            return DigitalState(form_text(self.store, owed), "initial", "pending")
-        guess = key.guess()
-        verdict: Verdict = "satisfied" if guess.is_trivially_true(self.store) else "pending"
-        return DigitalState(guess.text(self.store), "accepting", verdict)
+        else:  # a guess: proved by completed rounds only (mitlc.automata.ends)
+            guess = key.guess()
+            satisfied = guess.is_trivially_true(self.store)
+            verdict: Verdict = "satisfied" if satisfied else "pending"
+            return DigitalState(guess.text(self.store), "accepting", verdict, satisfied)
+        end = end_value(self.store, owed, self.ends)
+        return DigitalState(form_text(self.store, owed), "initial", "pending", end)
 
     def surely_live(self, key: Key) -> bool:
         """True for the states :meth:`state` calls satisfied: each loops on itself with every

@@ -302,6 +302,11 @@ class LazyAutomaton:
         """The formula still owed in ``state`` (as :attr:`DigitalState.obligation`)."""
         return self._state(state).obligation
 
+    def end(self, state: int) -> bool:
+        """Whether a trace that stops in ``state`` satisfies the formula (as
+        :attr:`DigitalState.end`)."""
+        return self._state(state).end
+
     def component(self, state: int) -> Component:
         """``initial`` or ``accepting``: the component of ``state``."""
         return self._state(state).component

@@ -3,7 +3,10 @@
 State labels: ``init``; ``acc0`` … on the states whose world-action choices are in that
 acceptance set (the marks of a product transition depend only on its source, so this
 state-based reading accepts the same runs; jumps never return to their source); ``satisfied``
-and ``violated`` on the two absorbing states. Only states reachable from the initial state are
+and ``violated`` on the two absorbing states; ``end`` on the states where an episode that stops
+there succeeds by the trace it read (:func:`mitlc.product.explicit.product_ends`; the
+satisfied state among them), so that the success of an episode of ``H`` steps without epsilon
+jumps or acceptance sets is Storm's ``Pmax=? [F[H,H] "end"]``. Only states reachable from the initial state are
 written (Storm's LTL checker fails on labelled unreachable states), numbered in product order.
 
 A world whose start is drawn (:attr:`mitlc.worlds.model.World.start_distribution`) has several
@@ -13,7 +16,7 @@ the average of Storm's values at those states weighted by them.
 
 from __future__ import annotations
 
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product, product_ends
 
 
 def reachable(product: Product) -> list[int]:
@@ -61,6 +64,7 @@ def to_drn(product: Product) -> str:
         "@model",
     ]
     t = product.transitions
+    ends = product_ends(product)
     for x in states:
         lo, hi = int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])
         marks = 0
@@ -70,6 +74,7 @@ def to_drn(product: Product) -> str:
         labels = ["init"] if x in first else []
         labels += [f"acc{k}" for k in range(product.num_sets) if marks >> k & 1]
         labels += ["satisfied"] if x == SATISFIED else []
+        labels += ["end"] if ends[x] else []
         labels += ["violated"] if x == VIOLATED else []
         head = f"state {number[x]}"
         lines.append(f"{head} " + " ".join(labels) if labels else head)
@@ -83,7 +88,9 @@ def to_drn(product: Product) -> str:
 def labels_present(product: Product) -> set[str]:
     """The labels :func:`to_drn` writes (Storm rejects a property naming any other)."""
     present = {"init"}
+    ends = product_ends(product)
     for x in reachable(product):
+        present |= {"end"} if ends[x] else set()
         present |= {"satisfied"} if x == SATISFIED else set()
         present |= {"violated"} if x == VIOLATED else set()
         for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):

@@ -30,7 +30,7 @@ from scipy.sparse import csr_matrix, vstack
 
 from mitlc.check.topo import spans
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
-from mitlc.product.explicit import SATISFIED, VIOLATED, Product, product_verdicts
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product, recursion_ends
 from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
@@ -194,7 +194,7 @@ def _model(world: World, product: Product) -> _Model:
             raise ObservedBoundError("the product's choices are not in action order")
         blocks.append(_move_matrix(product, live, choices, masks))
     moves = vstack(blocks, format="csr")
-    terminal = rules.recursion_ends(product_verdicts(product), product.num_sets).ravel()
+    terminal = recursion_ends(product).ravel()
     absorbing = np.concatenate([np.arange(masks) * n + SATISFIED, np.arange(masks) * n + VIOLATED])
     absorbing_values = np.concatenate([np.ones(masks), np.zeros(masks)])
     terminal[absorbing] = absorbing_values

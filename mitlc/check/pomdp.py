@@ -25,8 +25,10 @@ belief space, over-approximating it). The fully observable ``pmax`` is an upper 
 
 With ``horizon_success`` a step counter ``t`` (world actions count, epsilon jumps do not)
 joins the state and the observation (the agent can count steps), and the probability is of
-reaching ``satisfied`` within ``world.horizon`` steps (for zero acceptance sets: of not being
-violated within the horizon).
+reaching ``satisfied`` within ``world.horizon`` steps, where a run still pending at the horizon
+reaches it when the trace it read satisfies the formula (the end value of its state,
+:func:`mitlc.task.rules.success`; a completed round is not tracked here, so for a task with
+acceptance sets the bound counts only satisfied and end values).
 
 Time: the product, ``pmax`` and the POMDP's text read a :class:`mitlc.limits.Deadline`; Storm's
 unfolding gets the time left as its ``max_exploration_time`` (when that is shorter than the
@@ -50,6 +52,7 @@ from mitlc.product.explicit import (
     VIOLATED,
     Product,
     build_product,
+    product_ends,
 )
 from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
@@ -75,8 +78,9 @@ def to_pomdp_drn(
 ) -> str:
     """The DRN text of the product POMDP (see the module docstring), with labels ``init``,
     ``satisfied`` and ``violated``. With ``horizon``, states carry a step counter up to it;
-    pending states at the horizon move to ``satisfied`` (zero acceptance sets: not violated
-    within the horizon is success) or to an absorbing ``timeout`` state. ``deadline`` (none by
+    pending states at the horizon move to ``satisfied`` where the trace read so far satisfies
+    the formula (:func:`mitlc.product.explicit.product_ends`, the success rule of
+    :func:`mitlc.task.rules.success` without rounds) or to an absorbing ``timeout`` state. ``deadline`` (none by
     default) is read at every state written."""
     clock = Deadline.none() if deadline is None else deadline
     if world.observations is None:
@@ -93,7 +97,8 @@ def to_pomdp_drn(
     fixed = {VIOLATED: 1, SATISFIED: 2}
     lines_of: dict[int, list[str]] = {}
     order: list[tuple[int, int, int]] = []
-    sink_timeout = horizon is not None and product.num_sets > 0
+    sink_timeout = horizon is not None
+    ends = product_ends(product)
     # POMDP ids: 0 init, 1 violated, 2 satisfied, (3 timeout), then split states
     next_id = 4 if sink_timeout else 3
     if sink_timeout:
@@ -135,7 +140,7 @@ def to_pomdp_drn(
             a = int(product.action[c])
             body.append(f"\taction {world.actions[a] if a >= 0 else f'jump{-1 - a}'}")
             if at_horizon:
-                body.append(f"\t\t{3 if sink_timeout else 2} : 1")
+                body.append(f"\t\t{2 if ends[x] else 3} : 1")
                 continue
             after = step + 1 if (a >= 0 and horizon is not None) else step
             merged: dict[int, float] = {}

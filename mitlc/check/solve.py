@@ -39,6 +39,7 @@ from mitlc.product.explicit import (
     VIOLATED,
     Product,
     product_verdicts,
+    recursion_ends,
     start_average,
 )
 from mitlc.task import rules
@@ -305,7 +306,7 @@ def pmax_horizon(
 
 def _ends(product: Product) -> FloatArray:
     """The values when the horizon ends (:func:`mitlc.task.rules.recursion_ends`)."""
-    return rules.recursion_ends(product_verdicts(product), product.num_sets)
+    return recursion_ends(product)
 
 
 def _distinct(keys: IntArray, slot: IntArray) -> IntArray:

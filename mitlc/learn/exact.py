@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from mitlc.product.explicit import Product, product_verdicts, start_average
+from mitlc.product.explicit import Product, product_ends, product_verdicts, start_average
 from mitlc.task import rules
 from mitlc.worlds.model import FloatArray, IntArray
 
@@ -78,7 +78,7 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
 def _ends(product: Product, rounds: int) -> FloatArray:
     """``values[mask, x]``: the success of an episode that ends in ``x`` with ``rounds``
     completed rounds (every mask alike)."""
-    success = rules.success(product_verdicts(product), rounds, product.num_sets)
+    success = rules.success(product_verdicts(product), rounds, product_ends(product))
     values: FloatArray = np.tile(success.astype(np.float64), ((1 << product.num_sets), 1))
     return values
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.product.explicit import Product, product_verdicts
+from mitlc.product.explicit import Product, product_ends, product_verdicts
 from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Rewards, Sparse, World
 
@@ -64,6 +64,8 @@ class Tables:
     """Observation ids (cells for an MDP)."""
     verdict: IntArray
     """The verdict code of each product state (:func:`mitlc.product.explicit.product_verdicts`)."""
+    end: BoolArray
+    """The end value of each product state (:func:`mitlc.product.explicit.product_ends`)."""
     popcount: IntArray
     """:func:`mitlc.task.rules.popcounts` as an array."""
     starts: IntArray
@@ -142,6 +144,7 @@ def tables(product: Product, world: World) -> Tables:
         observation_cumulative=None if observations is None else _cumulative(observations.model),
         num_observations=world.num_states if observations is None else len(observations.names),
         verdict=product_verdicts(product),
+        end=product_ends(product),
         popcount=np.asarray(rules.popcounts(product.num_sets), dtype=np.int64),
         starts=np.array([x for x, _ in pairs], dtype=np.int64),
         start_cumulative=np.cumsum([p for _, p in pairs]),
@@ -282,7 +285,7 @@ class VecProduct:
             (self.steps >= t.horizon) | (self.actions_taken >= 4 * t.horizon + 4)
         )
         observation = np.where(jump, self.observation, self._observe(nxt))
-        success = rules.success(verdict, self.rounds, t.num_sets)
+        success = rules.success(verdict, self.rounds, t.end[nxt])
         self.returns += reward
         result = Step(
             reward=reward,

@@ -31,7 +31,7 @@ from mitlc.automata.digital import DigitalAutomaton
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.task import TaskAutomaton, TaskMonitor, rules
-from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Sparse, World
 
 VIOLATED, SATISFIED = 0, 1
 """The ids of the two absorbing product states."""
@@ -56,6 +56,10 @@ class Product:
     transitions: Sparse
     num_sets: int
     initial_distribution: tuple[tuple[int, float], ...] = ()
+    end: BoolArray | None = None
+    """Per state, whether an episode that stops there while pending is a success by the
+    finite trace it read (:attr:`mitlc.automata.DigitalState.end` of its automaton state;
+    ``None``: no state's). The absorbing states' are ``False`` and ``True``."""
     """The product states the episode may start in, each once, with their probabilities (the
     world's start distribution; one state with probability 1 for a certain start). ``initial``
     is the one of the world's ``start``."""
@@ -101,6 +105,22 @@ def product_verdicts(product: Product) -> IntArray:
     verdict = np.full(product.num_states, rules.PENDING, dtype=np.int64)
     verdict[VIOLATED], verdict[SATISFIED] = rules.VIOLATED, rules.SATISFIED
     return verdict
+
+
+def product_ends(product: Product) -> BoolArray:
+    """The end value of every product state (:attr:`Product.end`; all ``False`` but the
+    satisfied state's for a product made without them)."""
+    if product.end is not None:
+        return product.end
+    end = np.zeros(product.num_states, dtype=np.bool_)
+    end[SATISFIED] = True
+    return end
+
+
+def recursion_ends(product: Product) -> FloatArray:
+    """The finite-horizon recursions' values when the horizon ends, ``values[mask, x]``
+    (:func:`mitlc.task.rules.recursion_ends` of the product's verdicts and end values)."""
+    return rules.recursion_ends(product_verdicts(product), product_ends(product), product.num_sets)
 
 
 def start_distribution(world: World) -> tuple[tuple[int, float], ...]:
@@ -368,6 +388,8 @@ class _Builder:
         codes = np.concatenate(self.codes)
         world_state = np.where(codes >= 0, codes % self.num_s, -1)
         automaton_state = np.where(codes >= 0, codes // self.num_s, -1)
+        end = self.monitor.ends(np.maximum(automaton_state, 0))
+        end[VIOLATED], end[SATISFIED] = False, True
         return Product(
             world_state=world_state.astype(np.int64),
             automaton_state=automaton_state.astype(np.int64),
@@ -377,4 +399,5 @@ class _Builder:
             marks=np.concatenate(c_marks)[order],
             transitions=Sparse(indptr.astype(np.int64), (unique % n).astype(np.int64), probs),
             num_sets=self.monitor.num_sets,
+            end=end,
         )

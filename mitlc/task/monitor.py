@@ -58,6 +58,11 @@ class TaskAutomaton(Protocol):
         """The targets of the epsilon jumps of ``state``, in order."""
         ...
 
+    def end(self, state: int) -> bool:
+        """Whether a trace that stops in ``state`` satisfies the formula
+        (:attr:`mitlc.automata.DigitalState.end`)."""
+        ...
+
     def obligation(self, state: int) -> str:
         """What ``state`` still owes, as a formula's text."""
         ...
@@ -111,6 +116,7 @@ class TaskMonitor:
         self._popcount_array = np.asarray(self._popcount, dtype=np.int64)
         self._memo: dict[tuple[int, int], tuple[int, int, int]] = {}
         self._verdicts: list[int] = []
+        self._ends: list[bool] = []
         self._jumps: list[tuple[int, ...]] = []
         self._letter_keys = np.zeros(0, dtype=np.int64)
         self._letter_columns = np.zeros(0, dtype=np.int64)
@@ -125,6 +131,9 @@ class TaskMonitor:
         self._marks = np.zeros((1, 1), dtype=np.int64)
         self._next_flat, self._marks_flat = self._next.reshape(-1), self._marks.reshape(-1)
         self._verdict_array = np.zeros(0, dtype=np.int64)
+        self._end_array = np.zeros(0, dtype=np.bool_)
+        self._success_array = np.zeros(0, dtype=np.bool_)
+        self._success_list: list[bool] = []
         self._rule_tables()
 
     @property
@@ -174,7 +183,7 @@ class TaskMonitor:
             self._reward_list[new * 3 + verdict],
             verdict,
             self._terminated_list[verdict],
-            self._success_list[verdict * 2 + (rounds > 0)],
+            self._success_list[target * 2 + (rounds > 0)],
         )
 
     def jump(self, state: MonitorState, index: int) -> Outcome | None:
@@ -192,12 +201,21 @@ class TaskMonitor:
             float(rules.reward(0, verdict, self.rewards)),
             verdict,
             bool(rules.terminated(verdict)),
-            bool(rules.success(verdict, state.rounds, self.num_sets)),
+            self._success_list[q * 2 + (state.rounds > 0)],
         )
 
     def success(self, state: MonitorState) -> bool:
-        """Whether a run in ``state`` is a success so far."""
-        return bool(rules.success(self.verdict(state.q), state.rounds, self.num_sets))
+        """Whether a run that stops in ``state`` is a success (:func:`mitlc.task.rules.success`
+        of its verdict, rounds and end value)."""
+        if state.q >= len(self._verdicts):
+            self._learn_states(state.q)
+        return self._success_list[state.q * 2 + (state.rounds > 0)]
+
+    def end(self, q: int) -> bool:
+        """Whether a trace that stops in automaton state ``q`` satisfies the formula."""
+        if q >= len(self._ends):
+            self._learn_states(q)
+        return self._ends[q]
 
     # -- batches -------------------------------------------------------------------------------
     #
@@ -239,6 +257,20 @@ class TaskMonitor:
         found: IntArray = self._verdict_array[q]
         return found
 
+    def ends(self, q: IntArray) -> BoolArray:
+        """The end values of the automaton states ``q`` (:meth:`end`)."""
+        if len(q) and int(q.max()) >= len(self._end_array):
+            self._learn_states(int(q.max()))
+        found: BoolArray = self._end_array[q]
+        return found
+
+    def successes(self, q: IntArray, rounds: IntArray) -> BoolArray:
+        """:meth:`success` for a batch of runs stopping in ``q`` after ``rounds`` rounds."""
+        if len(q) and int(q.max()) >= len(self._verdicts):
+            self._learn_states(int(q.max()))
+        found: BoolArray = self._success_array.take(q * 2 + (rounds > 0))
+        return found
+
     def read_batch(
         self, q: IntArray, frontier: IntArray, rounds: IntArray, letters: IntArray
     ) -> BatchOutcome:
@@ -266,7 +298,7 @@ class TaskMonitor:
             self._reward.take(new * 3 + verdict),
             verdict,
             self._terminated.take(verdict),
-            self._success.take(verdict * 2 + (rounds > 0)),
+            self._success_array.take(target * 2 + (rounds > 0)),
         )
 
     def _rule_tables(self) -> None:
@@ -290,11 +322,8 @@ class TaskMonitor:
         self._reward = np.asarray(rules.reward(counts, verdicts, self.rewards), dtype=np.float64)
         codes = np.arange(3, dtype=np.int64)
         self._terminated = np.asarray(rules.terminated(codes), dtype=np.bool_)
-        verdicts, done = np.divmod(np.arange(6, dtype=np.int64), 2)
-        self._success = np.asarray(rules.success(verdicts, done, self.num_sets), dtype=np.bool_)
         self._reward_list: list[float] = self._reward.tolist()
         self._terminated_list: list[bool] = self._terminated.tolist()
-        self._success_list: list[bool] = self._success.tolist()
 
     # -- memo ----------------------------------------------------------------------------------
 
@@ -312,12 +341,21 @@ class TaskMonitor:
         return found
 
     def _learn_states(self, q: int) -> None:
-        """Verdicts and jumps of every state up to ``q``."""
+        """Verdicts, end values, jumps and success of every state up to ``q``:
+        ``success[2 * state + done]`` for a run stopping there with (``done``) or without a
+        completed round, by :func:`mitlc.task.rules.success`."""
         for state in range(len(self._verdicts), q + 1):
             self._verdicts.append(VERDICT_CODES[self.automaton.verdict(state)])
+            self._ends.append(bool(self.automaton.end(state)))
             self._jumps.append(tuple(self.automaton.jumps(state)))
         self._verdict_array = np.asarray(self._verdicts, dtype=np.int64)
+        self._end_array = np.asarray(self._ends, dtype=np.bool_)
         self._jump_count_array = np.array([len(j) for j in self._jumps], dtype=np.int64)
+        verdict = np.repeat(self._verdict_array, 2)
+        done = np.tile(np.array([0, 1], dtype=np.int64), len(self._verdicts))
+        end = np.repeat(self._end_array, 2).astype(np.int64)
+        self._success_array = np.asarray(rules.success(verdict, done, end), dtype=np.bool_)
+        self._success_list = self._success_array.tolist()
 
     def _column_of(self, letters: IntArray) -> IntArray:
         """The tables' column of each letter; 0 (a column never filled) for a letter not seen

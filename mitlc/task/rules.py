@@ -10,9 +10,12 @@ definition of:
   often; the frontier is the sets seen in the current round, emptied when the round completes);
 * the **verdict** codes of an automaton state, and when an episode **terminates** (the task is
   decided);
-* **success** of an episode: it never reaches *violated*, and it reaches *satisfied*, or
-  completes a round of all acceptance sets, or the task has no acceptance sets (a safety task);
-  a violation after a completed round is a failure;
+* **success** of an episode (:func:`success`), judged where it stops: it never reaches
+  *violated*, and it reaches *satisfied*, or completes a round of all acceptance sets, or the
+  finite trace it read satisfies the formula, the value of the state it stops in at the end of
+  a trace (:attr:`mitlc.automata.DigitalState.end`, :mod:`mitlc.automata.ends`: a deadline
+  still open fails, a safety window still open holds); a violation after a completed round is a
+  failure;
 * the task's **reward**: ``accept`` for each acceptance set new in the round, ``satisfied`` and
   ``violated`` on entering those states (a world's own terms, such as a cost per move, are the
   world's and are added by whoever steps it).
@@ -73,14 +76,18 @@ def saturate(done_mask: T, marks: T, all_sets: int) -> T:
 
 
 def terminated(verdict: T) -> T:
-    """The task is decided: the episode ends."""
+    """The task is decided: the episode ends (``terminated``). An episode that stops while
+    pending, at the task's horizon or in a world that can no longer move, is ``truncated``."""
     return verdict != PENDING
 
 
-def success(verdict: T, rounds: T, num_sets: int) -> T:
-    """The episode's success so far (see the module docstring): ``rounds`` counts completed
-    rounds (any positive number, or a "round completed" flag)."""
-    return (verdict != VIOLATED) & ((verdict == SATISFIED) | (rounds > 0) | (num_sets == 0))
+def success(verdict: T, rounds: T, end: T) -> T:
+    """The success of an episode that stops here (see the module docstring): in a state of
+    ``verdict`` whose value at the end of a trace is ``end``, after ``rounds`` completed rounds
+    (any positive number, or a "round completed" flag). The one definition of success: the
+    monitor, the wrapper, the simulators, the exact evaluation and the checker's recursions
+    all read it."""
+    return (verdict != VIOLATED) & ((verdict == SATISFIED) | (rounds > 0) | (end != 0))
 
 
 def reward(new: T, verdict: T, rewards: TaskRewards) -> Any:
@@ -93,13 +100,16 @@ def reward(new: T, verdict: T, rewards: TaskRewards) -> Any:
     )
 
 
-def recursion_ends(verdict: npt.NDArray[np.int64], num_sets: int) -> npt.NDArray[np.float64]:
+def recursion_ends(
+    verdict: npt.NDArray[np.int64], end: npt.NDArray[np.bool_], num_sets: int
+) -> npt.NDArray[np.float64]:
     """The finite-horizon recursions' values when the horizon ends: ``values[mask, x]`` is the
-    :func:`success` of an episode ending in a state of ``verdict[x]`` with the frontier
-    ``mask``, where the mask of all sets stands for a completed round (:func:`saturate`)."""
+    :func:`success` of an episode ending in a state of ``verdict[x]`` and end value ``end[x]``
+    with the frontier ``mask``, where the mask of all sets stands for a completed round
+    (:func:`saturate`; with no acceptance sets no round ever completes)."""
     masks = 1 << num_sets
-    done = (np.arange(masks) == masks - 1).astype(np.int64)
-    ends: npt.NDArray[np.float64] = success(verdict[None, :], done[:, None], num_sets).astype(
-        np.float64
-    )
+    done = ((np.arange(masks) == masks - 1) & (num_sets > 0)).astype(np.int64)
+    ends: npt.NDArray[np.float64] = success(
+        verdict[None, :], done[:, None], end[None, :].astype(np.int64)
+    ).astype(np.float64)
     return ends
