@@ -147,7 +147,8 @@ def test_case1_waiting_violates_after_the_window_of_a() -> None:
 def test_early_visit_violates_and_costs() -> None:
     env = spec_env(corridor({"a": [2]}, start=1), "!a U[2,3] a")
     (_, r1, t1, _, i1), (_, r2, t2, _, i2) = run(env, [RIGHT, STAY])
-    assert (r1, t1, i1["verdict"], i1["success"]) == (-1.0, False, "pending", True)
+    # after one step the window of a is still open: an episode stopped there would fail
+    assert (r1, t1, i1["verdict"], i1["success"]) == (-1.0, False, "pending", False)
     assert (r2, t2, i2["verdict"], i2["success"]) == (-50.0, True, "violated", False)
 
 

@@ -75,10 +75,6 @@ BAD = {
         CART.replace("high: [-0.1]", "high: nope"),
         "labels.tilted[0].box.high",
     ),
-    "horizon past the env's time limit": (
-        CART.replace("horizon: 20", "horizon: 900"),
-        "horizon:",
-    ),
     "a move cost": (
         CART.replace("move: 0", "move: -1"),
         "reward.move: an env's actions have no 'stay'",

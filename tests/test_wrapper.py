@@ -16,7 +16,7 @@ from gymnasium import spaces
 from gymnasium.utils.env_checker import check_env
 
 from mitlc.automata import DigitalAutomaton, translate
-from mitlc.gym import ENV_ID, TaskWrapper, TaskWrapperError
+from mitlc.gym import ENV_ID, EpisodeCutWarning, TaskWrapper, TaskWrapperError
 from mitlc.gym.wrapper import RewardMode
 from mitlc.labels import compile_labels
 from mitlc.product import ProductEnv, make_env
@@ -251,7 +251,10 @@ def test_stutter_on_inner_termination_reads_the_last_position_again(
     path = [RIGHT, RIGHT, DOWN, DOWN, DOWN, RIGHT]  # 0 1 2 6 10 14 15: the goal at position 6
     results = [env.step(a) for a in path]
     _, _, terminated, truncated, info = results[-1]
-    assert terminated and not truncated and not any(r[2] or r[3] for r in results[:-1])
+    assert not any(r[2] or r[3] for r in results[:-1])
+    assert info["env_ended"] and not any(r[4]["env_ended"] for r in results[:-1])
+    decided = info["verdict"] != "pending"  # decided: terminated; pending at the horizon: truncated
+    assert (terminated, truncated) == (decided, not decided)
     assert (info["success"], info["step"]) == (success, min(steps, horizon))
     outcomes = absorbing([0] * 6 + [1], env.monitor, horizon)  # letter 1: goal (bit 0)
     assert env.automaton.propositions == ("goal",)
@@ -291,7 +294,8 @@ def test_ignoring_the_mask_costs_steps_and_every_episode_ends() -> None:
 def test_the_wrapper_is_the_monitor_over_the_same_letters(slippery: bool) -> None:
     """Random masked play on FrozenLake: every step's reward, verdict, success, end and
     automaton state equal a direct TaskMonitor run over the letters of the observations (the
-    last one repeated after the env terminates)."""
+    last one read again after the env terminates: one read per action where the task has
+    jumps, all at once where it has none)."""
     labels = compile_labels(LAKE)
     for spec in ("F G !hole", "G F goal | F[3,6] hole", "!hole U[4,12] goal"):
         env = TaskWrapper(gym.make("FrozenLake-v1", is_slippery=slippery), spec, LAKE,
@@ -316,7 +320,8 @@ def test_the_wrapper_is_the_monitor_over_the_same_letters(slippery: bool) -> Non
                     out = monitor.step(state, letter)
                     total, letter = out.reward, letter_of(obs["env"], info)
                     ended = desc.flat[obs["env"]] in b"GH"
-                    while ended and not out.terminated and out.state.steps < 25:
+                    assert info["env_ended"] == ended
+                    while env._finish and ended and not out.terminated and out.state.steps < 25:
                         out = monitor.step(out.state, letter)
                         total += out.reward
                 state = out.state
@@ -325,7 +330,7 @@ def test_the_wrapper_is_the_monitor_over_the_same_letters(slippery: bool) -> Non
                 assert (info["automaton_state"], info["step"]) == (state.q, state.steps)
                 assert obs["automaton"] == state.q and obs["frontier"] == state.frontier
                 done = terminated or truncated
-            assert terminated == (out.terminated or ended)
+            assert terminated == out.terminated and truncated == (not out.terminated)
             assert info["success"] == monitor.success(state)
 
 
@@ -410,10 +415,21 @@ def test_grid_env_draws_its_start() -> None:
     assert ProductEnv(base.world, base.automaton).reset(seed=1)[1]["state"] == base.world.start
 
 
-def test_an_env_time_limit_below_the_horizon_is_refused() -> None:
-    """FrozenLake-v1 stops at 100 steps by itself: with a horizon of 110, a pending safety task
-    cut there would count as a success; the wrapper refuses it, and accepts the limit lifted."""
-    with pytest.raises(TaskWrapperError, match=r"own time limit \(100 steps\).*horizon \(110\)"):
-        TaskWrapper(gym.make("FrozenLake-v1"), "!hole U[0,100] goal", LAKE, horizon=110)
-    lifted = gym.make("FrozenLake-v1", max_episode_steps=110)
-    assert TaskWrapper(lifted, "!hole U[0,100] goal", LAKE, horizon=110).horizon == 110
+def test_an_env_time_limit_below_the_horizon_is_warned_and_the_world_stays() -> None:
+    """FrozenLake-v1 stops at 100 steps by itself: with a horizon of 110 the wrapper warns once,
+    and the cut ends the world, not the task: the agent stands still (the env is not stepped
+    again) until the task's horizon, and a pending deadline then fails (truncated)."""
+    with pytest.warns(EpisodeCutWarning, match=r"own time limit \(100 steps\).*horizon \(110\)"):
+        lake = gym.make("FrozenLake-v1", is_slippery=False)
+        env = TaskWrapper(lake, "!hole U[0,105] goal", LAKE, horizon=110)
+    env.reset(seed=0)
+    results = [env.step(0) for _ in range(106)]  # left, left, ...: stays at the start
+    assert [r[4]["env_ended"] for r in results] == [False] * 99 + [True] * 7
+    assert all(r[4]["step"] == t + 1 for t, r in enumerate(results))
+    assert not any(r[2] or r[3] for r in results[:105])
+    _, _, terminated, truncated, info = results[105]  # the window closed at position 105
+    assert terminated and info["verdict"] == "violated" and not info["success"]
+    lifted = gym.make("FrozenLake-v1", is_slippery=False, max_episode_steps=110)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert TaskWrapper(lifted, "!hole U[0,100] goal", LAKE, horizon=110).horizon == 110

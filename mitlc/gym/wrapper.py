@@ -24,16 +24,30 @@ plumbing between the monitor and the environment:
   part of the observation is unchanged. A jump the state does not have is *invalid*: nothing
   moves, the reward is 0, ``info["invalid_action"]`` is True, and it costs a step of the
   horizon, so an agent that ignores :meth:`TaskWrapper.action_masks` still ends every episode.
-* **Inner termination.** If the env terminates while the task is pending, the run stutters on
-  its last position (a terminal state is absorbing, as in a finite world): within the same
-  ``step`` the monitor reads the final letter again, one step each, until the task is decided
-  or the horizon is reached; their rewards are summed and ``info["marks"]`` is their union.
-* **Episode end.** ``terminated`` when the task is decided or the env terminated;
-  otherwise ``truncated`` when ``horizon`` steps (world steps and invalid actions) are taken,
-  or the env truncated. Exactly one of them is true at the end.
+* **The end of the inner env.** An env that terminates, or truncates before the task's horizon
+  (its own ``TimeLimit``, or its own notion of duration), ends the *world*, not the task: as
+  in a finite world, whose terminal states are absorbing, the world stays on its last position
+  and the task goes on reading its last letter, one step of the horizon per world action,
+  until the task is decided or the horizon is reached (the env is not stepped again and adds
+  no reward). ``info["env_ended"]`` is True from that step on. With ``env_end="step"`` every
+  such step is an action of the agent's, so it can still take an epsilon jump there, exactly
+  as in the finite product; with ``"finish"`` the rest of the episode is run within the one
+  ``step`` call that ended the env (no choice is left when the task has no jumps; rewards
+  summed, ``info["marks"]`` their union). The default, ``"auto"``, is ``"step"`` when the task
+  has jumps and ``"finish"`` otherwise. An env that truncates before the horizon is warned
+  about once (:class:`EpisodeCutWarning`), and so is an env with a ``TimeLimit`` shorter than
+  the horizon, when the wrapper is made.
+* **Episode end** (one rule for every path, :mod:`mitlc.task.rules`): ``terminated`` when the
+  task is decided (*satisfied* or *violated*); ``truncated`` when it is still pending after
+  ``horizon`` steps (world steps, stutters and invalid actions). Exactly one of them is true
+  at the end, and ``info["success"]`` is then the task's success: a decided task's verdict, a
+  pending one's value on the finite trace it read (:func:`mitlc.task.rules.success`). At every
+  step ``info["success"]`` says what the episode's success would be if it stopped there, so an
+  outer ``TimeLimit`` (``gymnasium.make(ENV_ID, ..., max_episode_steps=k)``) that cuts the
+  episode short judges it by the same rule.
 * **Reward.** The monitor's, replacing the env's (``reward_mode="replace"``) or added to it
   (``"add"``; a jump or an invalid action never steps the env, so adds nothing).
-* **info.** The env's last info, plus ``verdict``, ``marks`` (acceptance-set indices),
+* **info.** The env's last info, plus ``env_ended``, ``verdict``, ``marks`` (acceptance-set indices),
   ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
   ``invalid_action``, ``automaton_state``, ``accepting`` (the step added a set to the
   frontier: the monitor's ``new``) and, with a ``Discrete`` action space, ``action_mask`` (the
@@ -46,6 +60,7 @@ horizon=...)`` builds the inner env by id and wraps it.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import Any, Literal, cast
 
@@ -67,10 +82,16 @@ ENV_ID = "mitlc/Task-v0"
 """``gymnasium.make(ENV_ID, env_id=..., spec=..., labels=..., horizon=...)``."""
 
 RewardMode = Literal["replace", "add"]
+EnvEnd = Literal["auto", "step", "finish"]
 
 
 class TaskWrapperError(MitlcError, ValueError):
     """The wrapper cannot be built as asked (or a lazy automaton outgrew its declared size)."""
+
+
+class EpisodeCutWarning(UserWarning):
+    """The inner env ends its episodes before the task's horizon (the world then stays on its
+    last position until the task is decided or the horizon is reached)."""
 
 
 def _rewards(rewards: TaskRewards | Mapping[str, float] | None) -> TaskRewards:
@@ -105,28 +126,25 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         max_automaton_states: int | None = None,
         max_jumps: int | None = None,
         env_key: str = "env",
+        env_end: EnvEnd = "auto",
     ) -> None:
         """Wrap ``env`` with the task ``spec`` (a formula's text, or an automaton), read through
         ``labels``. ``max_automaton_states`` (and ``max_jumps``, default 0) size a lazy
-        automaton's part of the spaces; ``env_key`` names the env's part of the observation."""
+        automaton's part of the spaces; ``env_key`` names the env's part of the observation;
+        ``env_end`` says how the steps after the env has ended are taken (module docstring)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
+            env_end=env_end,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
         if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
             raise TaskWrapperError(f"horizon: expected a positive integer, got {horizon!r}")
         if reward_mode not in ("replace", "add"):
             raise TaskWrapperError(f"reward_mode: expected 'replace' or 'add', got {reward_mode!r}")
-        limit = _time_limit(env)
-        if limit is not None and limit < horizon:
-            raise TaskWrapperError(
-                f"horizon: the env's own time limit ({limit} steps) would end episodes before "
-                f"the task's horizon ({horizon}), counting an undecided run as success so far; "
-                f"make it with gymnasium.make(..., max_episode_steps={horizon}) or give "
-                f"horizon={limit}"
-            )
+        if env_end not in ("auto", "step", "finish"):
+            raise TaskWrapperError(f"env_end: expected 'auto', 'step' or 'finish', got {env_end!r}")
         if env_key in ("automaton", "frontier"):
             raise TaskWrapperError(f"env_key: {env_key!r} is the name of the task's part")
         automaton = translate(parse(spec, "<spec>")) if isinstance(spec, str) else spec
@@ -135,8 +153,17 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self.labels = as_labels(labels, env.observation_space)
         self._read = letter_reader(self.labels, automaton.propositions)
         self.horizon, self.reward_mode, self.flatten = horizon, reward_mode, flatten
+        self._cut_warned = False
+        limit = _time_limit(env)
+        if limit is not None and limit < horizon:
+            self._warn_cut(
+                f"the env's own time limit ({limit} steps) ends episodes before the task's "
+                f"horizon ({horizon})"
+            )
         self._add = reward_mode == "add"
         self.num_q, self.max_jumps = self._sizes(max_automaton_states, max_jumps)
+        self.env_end: EnvEnd = env_end
+        self._finish = env_end == "finish" or (env_end == "auto" and not self.max_jumps)
         self._checked_below = self.num_q if isinstance(automaton, DigitalAutomaton) else 0
         self._num_sets = automaton.num_sets
         self._mark_lists = [
@@ -147,9 +174,20 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._action_spaces(env.action_space)
         self._observation_spaces(env.observation_space)
         self._state: MonitorState = self.monitor.reset()
-        self._letter, self._done = 0, True
+        self._letter, self._done, self._ended = 0, True, False
         self._env_obs: Any = None
         self._env_info: dict[str, Any] = {}
+
+    def _warn_cut(self, what: str) -> None:
+        if not self._cut_warned:
+            self._cut_warned = True
+            warnings.warn(
+                f"{what}: the world stays on its last position until the task is decided or "
+                f"its horizon is reached (make the env with gymnasium.make(..., "
+                f"max_episode_steps={self.horizon}) or a longer duration to let it move)",
+                EpisodeCutWarning,
+                stacklevel=3,
+            )
 
     def _sizes(self, max_states: int | None, max_jumps: int | None) -> tuple[int, int]:
         if not isinstance(self.automaton, DigitalAutomaton):
@@ -252,23 +290,28 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return mask
 
     def state_dict(self) -> dict[str, Any]:
-        """The run's state for a checkpoint: the task monitor's, the letter to read next, the
-        env's last observation and, where the env has a ``state_dict``, the env's own."""
+        """The run's state for a checkpoint: the task monitor's, the letter to read next,
+        whether the env has ended, the env's last observation and info (its entries that are
+        data: numbers, strings, arrays and containers of them) and, where the env has a
+        ``state_dict``, the env's own."""
         inner = self.env.unwrapped
         own = inner.state_dict() if hasattr(inner, "state_dict") else {}
         return {
             "monitor": list(self._state),
             "letter": self._letter,
             "done": self._done,
+            "env_ended": self._ended,
             "env_obs": self._env_obs,
+            "env_info": _data_only(self._env_info),
             "env": own,
         }
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` (the env's info is not kept: it starts empty)."""
+        """Restore :meth:`state_dict`."""
         self._state = MonitorState(*(int(v) for v in saved["monitor"]))
         self._letter, self._done = int(saved["letter"]), bool(saved["done"])
-        self._env_obs, self._env_info = saved["env_obs"], {}
+        self._ended = bool(saved.get("env_ended", False))
+        self._env_obs, self._env_info = saved["env_obs"], dict(saved.get("env_info", {}))
         inner = self.env.unwrapped
         if hasattr(inner, "load_state_dict"):
             inner.load_state_dict(saved["env"])
@@ -283,7 +326,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._env_obs, self._env_info = obs, info
         self._letter = self._read(obs, info)
         self._state = state = self.monitor.reset()
-        self._done = False
+        self._done = self._ended = False
         verdict = self.monitor.verdict(state.q)
         success = self.monitor.success(state)
         info = self._info(info, state, verdict, 0, success, False, False)
@@ -303,11 +346,20 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         state, marks, new, reward, verdict, decided, success = monitor.step(
             self._state, self._letter
         )
-        obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
-        self._env_obs, self._env_info = obs, env_info
-        self._letter = letter = self._read(obs, env_info)
-        if inner_terminated and not decided:  # stutter on the absorbing last position
-            horizon = self.horizon
+        if self._ended:  # the world stays on its last position: the env is not stepped
+            obs, env_info = self._env_obs, self._env_info
+        else:
+            obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
+            self._env_obs, self._env_info = obs, env_info
+            self._letter = self._read(obs, env_info)
+            if self._add:
+                reward += float(env_reward)
+            if inner_terminated or inner_truncated:
+                self._ended = True
+                if not inner_terminated and not decided and state.steps < self.horizon:
+                    self._warn_cut(f"the env truncated its episode at step {state.steps}")
+        if self._ended and self._finish:  # no choice is left: the rest of the episode at once
+            horizon, letter = self.horizon, self._letter
             while not decided and state.steps < horizon:
                 state, more, fresh, gain, verdict, decided, success = monitor.step(state, letter)
                 reward += gain
@@ -317,13 +369,12 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         q, frontier, rounds, steps = state
         if q >= self._checked_below:
             self._check_capacity(q)
-        if self._add:
-            reward += float(env_reward)
-        terminated = bool(decided or inner_terminated)
-        truncated = not terminated and (steps >= self.horizon or bool(inner_truncated))
+        terminated = bool(decided)
+        truncated = not terminated and steps >= self.horizon
         self._done = terminated or truncated
         lists = self._mark_lists
         info = env_info.copy()
+        info["env_ended"] = self._ended
         info["verdict"] = VERDICT_NAMES[verdict]
         info["marks"] = [*lists[marks]] if marks < len(lists) else [*self._marks_of(marks)]
         info["rounds"] = rounds
@@ -411,6 +462,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         """The env's ``info`` with the task's entries (those of :meth:`step`, spelled out there
         for speed: keep the two alike)."""
         info = env_info.copy()
+        info["env_ended"] = self._ended
         info["verdict"] = VERDICT_NAMES[verdict]
         info["marks"] = [*self._marks_of(marks)]
         info["rounds"] = state.rounds
@@ -422,6 +474,26 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._discrete:
             info["action_mask"] = self.masks_of(state.q).copy()
         return info
+
+
+def _data_only(value: Any) -> Any:
+    """``value`` with only what a checkpoint holds (numbers, strings, ``None``, numpy arrays of
+    numbers, and lists, tuples and string-keyed dicts of them); anything else is left out
+    (:data:`_LEFT_OUT` at the top)."""
+    if value is None or isinstance(value, bool | int | float | str | np.generic):
+        return value
+    if isinstance(value, np.ndarray):
+        return _LEFT_OUT if value.dtype.hasobject else value
+    if isinstance(value, list | tuple):
+        items = [_data_only(v) for v in value]
+        return _LEFT_OUT if any(v is _LEFT_OUT for v in items) else type(value)(items)
+    if isinstance(value, dict):
+        kept = {k: _data_only(v) for k, v in value.items() if isinstance(k, str)}
+        return {k: v for k, v in kept.items() if v is not _LEFT_OUT and not k.startswith("__")}
+    return _LEFT_OUT
+
+
+_LEFT_OUT = object()
 
 
 def _time_limit(env: gym.Env[Any, Any]) -> int | None:

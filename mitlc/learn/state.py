@@ -62,6 +62,10 @@ def restore(
     return loaded
 
 
+FREE_FORM = ("env_info",)
+"""Names of entries whose structure is their writer's (see :func:`conform`)."""
+
+
 class Mismatch(ValueError):
     """A loaded state unlike the fresh one; ``kind`` is the file the entry comes from."""
 
@@ -81,8 +85,9 @@ def conform(
     """Raise :class:`Mismatch` unless ``saved`` has ``template``'s structure: the same dict
     keys, list lengths and scalar types, arrays and tensors of the same dtype and shape (arrays
     under a path in ``rows`` may have another number of rows). Paths in ``unchecked`` are left
-    to the object that restores them."""
-    if where in unchecked:
+    to the object that restores them, and so is every entry named :data:`FREE_FORM` (a task
+    wrapper's copy of its env's last ``info``, whose keys are the env's)."""
+    if where in unchecked or where.rpartition(".")[2] in FREE_FORM:
         return
     tensor = tensor_type()
     if isinstance(template, np.ndarray):
