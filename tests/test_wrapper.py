@@ -421,7 +421,7 @@ def test_an_env_time_limit_below_the_horizon_is_warned_and_the_world_stays() -> 
     again) until the task's horizon, and a pending deadline then fails (truncated)."""
     with pytest.warns(EpisodeCutWarning, match=r"own time limit \(100 steps\).*horizon \(110\)"):
         lake = gym.make("FrozenLake-v1", is_slippery=False)
-        env = TaskWrapper(lake, "!hole U[0,105] goal", LAKE, horizon=110)
+        env = TaskWrapper(lake, "!hole U[0,105] goal", LAKE, horizon=110, env_end="step")
     env.reset(seed=0)
     results = [env.step(0) for _ in range(106)]  # left, left, ...: stays at the start
     assert [r[4]["env_ended"] for r in results] == [False] * 99 + [True] * 7
@@ -429,6 +429,14 @@ def test_an_env_time_limit_below_the_horizon_is_warned_and_the_world_stays() -> 
     assert not any(r[2] or r[3] for r in results[:105])
     _, _, terminated, truncated, info = results[105]  # the window closed at position 105
     assert terminated and info["verdict"] == "violated" and not info["success"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lake = gym.make("FrozenLake-v1", is_slippery=False)
+        env = TaskWrapper(lake, "!hole U[0,105] goal", LAKE, horizon=110)  # no jumps: "finish"
+    env.reset(seed=0)
+    results = [env.step(0) for _ in range(100)]  # the rest of the episode within the 100th
+    assert not any(r[2] or r[3] for r in results[:99]) and results[99][2]
+    assert (results[99][4]["step"], results[99][4]["verdict"]) == (106, "violated")
     lifted = gym.make("FrozenLake-v1", is_slippery=False, max_episode_steps=110)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
