@@ -78,8 +78,8 @@ def test_incremental_steps_give_the_plain_tables(
 def test_a_jump_passes_a_late_change_back(monkeypatch: pytest.MonkeyPatch) -> None:
     """``x -> s``, and ``s`` jumps to a chain ``t -> u -> w -> violated`` (its own move is to
     violated too): with no sets and every state's end value true (a safety task), success is
-    not being violated within the horizon, which ``s`` loses through the jump at three steps, and ``x`` at four, although nothing ``s`` moves to
-    has changed then."""
+    not being violated within the horizon, which ``s`` loses through the jump at three steps,
+    and ``x`` at four, although nothing ``s`` moves to has changed then."""
     monkeypatch.setattr(solve, "FULL_STEP", 2.0)
     # states: violated, satisfied, x, s, t, u, w; choices: one each, s a move and a jump
     targets = np.array([VIOLATED, SATISFIED, 3, VIOLATED, 4, 5, 6, VIOLATED])

@@ -427,7 +427,7 @@ def test_an_env_time_limit_below_the_horizon_is_warned_and_the_world_stays() -> 
     assert [r[4]["env_ended"] for r in results] == [False] * 99 + [True] * 7
     assert all(r[4]["step"] == t + 1 for t, r in enumerate(results))
     assert not any(r[2] or r[3] for r in results[:105])
-    _, _, terminated, truncated, info = results[105]  # the window closed at position 105
+    _, _, terminated, _, info = results[105]  # the window closed at position 105
     assert terminated and info["verdict"] == "violated" and not info["success"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

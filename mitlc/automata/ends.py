@@ -48,7 +48,7 @@ def end_value(store: TermStore, form: int, memo: dict[int, bool] | None = None) 
 
 def _atom_end(store: TermStore, atom: int, memo: dict[int, bool]) -> bool:
     kind, lo, hi, operand, _ = store.atoms[atom]
-    if kind == LIT or kind == UNTIL:
+    if kind in (LIT, UNTIL):
         return False
     if kind == EVENTUALLY:
         return lo == hi and lo > 0 and end_value(store, operand, memo)

@@ -106,9 +106,7 @@ def check(
     (``None``: no limit), or at ``deadline`` when one is given."""
     start = time.perf_counter()
     clock = Deadline.of(deadline, time_limit, "check")
-    product = build_product(
-        world, automaton, max_product_states=max_product_states, deadline=clock
-    )
+    product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
     solution = pmax(product, deadline=clock.at("pmax"))
     within, _ = pmax_horizon(
         product, world.horizon, keep_history=False, deadline=clock.at("pmax_horizon")

@@ -80,8 +80,8 @@ def to_pomdp_drn(
     ``satisfied`` and ``violated``. With ``horizon``, states carry a step counter up to it;
     pending states at the horizon move to ``satisfied`` where the trace read so far satisfies
     the formula (:func:`mitlc.product.explicit.product_ends`, the success rule of
-    :func:`mitlc.task.rules.success` without rounds) or to an absorbing ``timeout`` state. ``deadline`` (none by
-    default) is read at every state written."""
+    :func:`mitlc.task.rules.success` without rounds) or to an absorbing ``timeout`` state.
+    ``deadline`` (none by default) is read at every state written."""
     clock = Deadline.none() if deadline is None else deadline
     if world.observations is None:
         raise ValueError(f"world {world.name!r} is not a POMDP")
@@ -241,9 +241,7 @@ def pomdp_bounds(
 
     start = time.perf_counter()
     clock = Deadline.of(deadline, time_limit, "the POMDP bounds")
-    product = build_product(
-        world, automaton, max_product_states=max_product_states, deadline=clock
-    )
+    product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
     full = float(pmax(product, deadline=clock.at("pmax")).values[product.initial])
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp)

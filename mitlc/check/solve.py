@@ -38,7 +38,6 @@ from mitlc.product.explicit import (
     SATISFIED,
     VIOLATED,
     Product,
-    product_verdicts,
     recursion_ends,
     start_average,
 )

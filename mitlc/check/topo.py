@@ -184,9 +184,7 @@ def _solve_layers(
         else:
             alone = single[states] & ~fixed[states]
             values[states[alone]] = np.maximum(best[alone], 0.0)
-            _solve_components(
-                matrix, states[~single[states]], product, values, fixed, deadline
-            )
+            _solve_components(matrix, states[~single[states]], product, values, fixed, deadline)
     return values
 
 

@@ -47,8 +47,8 @@ plumbing between the monitor and the environment:
   episode short judges it by the same rule.
 * **Reward.** The monitor's, replacing the env's (``reward_mode="replace"``) or added to it
   (``"add"``; a jump or an invalid action never steps the env, so adds nothing).
-* **info.** The env's last info, plus ``env_ended``, ``verdict``, ``marks`` (acceptance-set indices),
-  ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
+* **info.** The env's last info, plus ``env_ended``, ``verdict``, ``marks`` (acceptance-set
+  indices), ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
   ``invalid_action``, ``automaton_state``, ``accepting`` (the step added a set to the
   frontier: the monitor's ``new``) and, with a ``Discrete`` action space, ``action_mask`` (the
   valid actions now, :meth:`TaskWrapper.masks_of`; gymnasium's toy-text convention, so that a

@@ -6,7 +6,9 @@ is that letter over the automaton's propositions, mapped by name from the world'
 (:func:`automaton_letters`). A world
 action ``a`` moves to ``(s', delta[q][L(s)])`` with the world's probability, in the acceptance
 sets ``marks[q][L(s)]``; an epsilon jump ``q -> t`` of the automaton is an extra choice that
-moves to ``(s, t)`` with probability 1 and no marks. Every product state whose automaton state
+moves to ``(s, t)`` with probability 1 and no marks (a state's jumps come after its world
+actions, in the order of the automaton's ``jumps(q)``, so jump ``j`` is the task wrapper's action
+``num_actions + j``). Every product state whose automaton state
 is violated (satisfied) is merged into one absorbing ``violated`` (``satisfied``) state; the
 satisfied state's self-loop is in every acceptance set. Only states reachable from
 ``(start, initial)`` are built, breadth first.
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -258,24 +261,26 @@ class _Builder:
         out[pending] = self.ids[codes[pending]]
         return out, new_ids
 
-    def jumps(self, q: IntArray) -> tuple[IntArray, IntArray]:
-        """For each entry of ``q``: how many epsilon jumps it has, and their targets (all of
-        them, entry after entry); the monitor is asked once per distinct state."""
+    def jumps(self, q: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+        """For each entry of ``q``: how many epsilon jumps it has, their targets and their
+        ranks in the monitor's order of the state's jumps (all of them, entry after entry);
+        the monitor is asked once per distinct state."""
         counts = self.monitor.jump_counts(q)
+        none = np.zeros(0, dtype=np.int64)
         if not counts.any():
-            return counts, np.zeros(0, dtype=np.int64)
+            return counts, none, none
         distinct, inverse = np.unique(q, return_inverse=True)
         lists = [self.monitor.jumps(state) for state in distinct.tolist()]
         sizes = np.array([len(targets) for targets in lists], dtype=np.int64)
         counts = sizes[inverse]
         if not sizes.any():
-            return counts, np.zeros(0, dtype=np.int64)
+            return counts, none, none
         flat = np.array([t for targets in lists for t in targets], dtype=np.int64)
         start = np.cumsum(sizes) - sizes
         owner = np.repeat(np.arange(len(q)), counts)
         rank = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
         targets: IntArray = flat[start[inverse[owner]] + rank]
-        return counts, targets
+        return counts, targets, rank
 
     def build(self) -> Product:
         world, num_s, monitor = self.world, self.num_s, self.monitor
@@ -297,7 +302,7 @@ class _Builder:
             self.deadline.check_now()
             s, q = codes % num_s, codes // num_s
             q_next, marks = monitor.successors(q, self.letters[s])
-            batches = []
+            batches: list[tuple[int, Any, Any, Any, Any, Any, IntArray | None]] = []
             for a in range(world.num_actions):
                 rows = s * world.num_actions + a
                 lo, hi = world.transitions.indptr[rows], world.transitions.indptr[rows + 1]
@@ -312,9 +317,10 @@ class _Builder:
                         targets,
                         world.transitions.probs[index],
                         marks,
+                        None,
                     )
                 )
-            jump_counts, jump_targets = self.jumps(q)
+            jump_counts, jump_targets, jump_ranks = self.jumps(q)
             if jump_counts.any():
                 owner = np.repeat(np.arange(len(frontier)), jump_counts)
                 batches.append(
@@ -325,10 +331,11 @@ class _Builder:
                         jump_targets * num_s + s[owner],
                         np.ones(len(owner)),
                         np.zeros(len(owner), dtype=np.int64),
+                        jump_ranks,
                     )
                 )
             new_frontier, level_start = [], len(self.codes)
-            for a, owner, counts, targets, probs, choice_marks in batches:
+            for a, owner, counts, targets, probs, choice_marks, ranks in batches:
                 ids, new = self.intern(targets)
                 new_frontier.append(new)
                 n = len(owner)
@@ -338,10 +345,10 @@ class _Builder:
                 if a >= 0:
                     c_key.append(np.full(n, a, dtype=np.int64))
                     c_action.append(np.full(n, a, dtype=np.int64))
-                else:
-                    jumped = targets // num_s
-                    c_key.append(world.num_actions + jumped)
-                    c_action.append(-1 - jumped)
+                else:  # jumps after the world actions, in the monitor's order
+                    assert ranks is not None
+                    c_key.append(world.num_actions + ranks)
+                    c_action.append(-1 - targets // num_s)
                 e_choice.append(np.repeat(choice_ids, counts))
                 e_target.append(ids)
                 e_prob.append(probs)
@@ -369,8 +376,9 @@ class _Builder:
         e_target: list[IntArray],
         e_prob: list[FloatArray],
     ) -> Product:
-        """Choices sorted by state, then action (jumps last, by target); duplicate targets of a
-        choice summed; targets sorted within each choice."""
+        """Choices sorted by state, then action (jumps last, in the order of the automaton
+        state's jumps: the wrapper's jump actions); duplicate targets of a choice summed;
+        targets sorted within each choice."""
         state, key = np.concatenate(c_state), np.concatenate(c_key)
         order = np.lexsort((key, state))
         rank = np.empty_like(order)
