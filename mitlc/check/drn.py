@@ -7,7 +7,8 @@ and ``violated`` on the two absorbing states; ``end`` on the states where an epi
 there succeeds by the trace it read (:func:`mitlc.product.explicit.product_ends`; the
 satisfied state among them), so that the success of an episode of ``H`` steps without
 epsilon jumps or acceptance sets is Storm's ``Pmax=? [F[H,H] "end"]``. Only states reachable
-from the initial state are written (Storm's LTL checker fails on labelled unreachable states), numbered in product order.
+from the initial state are written (Storm's LTL checker fails on labelled unreachable
+states), numbered in product order.
 
 A world whose start is drawn (:attr:`mitlc.worlds.model.World.start_distribution`) has several
 ``init`` states; a comment line gives their probabilities, and the probability mitlc reports is
