@@ -76,6 +76,7 @@ def check_command(
     from mitlc.automata.dot import write_atomically
     from mitlc.check import check
     from mitlc.check.drn import to_drn
+    from mitlc.task.horizon import short_horizon_note
     from mitlc.worlds import load_world
 
     if spec is not None:
@@ -85,6 +86,9 @@ def check_command(
         world = load_world(world_file)
         formula = parse(world.spec, world.spec_source)
     deadline = command_deadline(time_limit, "check")
+    note = short_horizon_note(formula, world.horizon)
+    if note is not None:
+        typer.echo(note, err=True)
     # The automaton is made lazily: only the states and letters the world reaches (a task over
     # many propositions never builds its 2^n letters, nor its folded form, here).
     digital = LazyAutomaton(formula, max_states=max_states, deadline=deadline)

@@ -185,6 +185,7 @@ def train_command(
             progress=show,
             should_stop=stop,
             deadline=command_deadline(time_limit, "train"),
+            notes=lambda note: typer.echo(note, err=True),
         )
     if result.stopped:
         typer.echo(

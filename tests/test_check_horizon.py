@@ -37,7 +37,8 @@ def plain_horizon(product: Product, horizon: int) -> list[FloatArray]:
     start = np.tile(product_ends(product).astype(np.float64), (masks, 1))
     if product.num_sets:
         start[masks - 1] = 1.0
-    tables = [settle(start)]
+    start[:, SATISFIED], start[:, VIOLATED] = 1.0, 0.0
+    tables = [start]  # no step left: the episode is over, no jump is taken
     for _ in range(horizon):
         last, step = tables[-1], np.full((masks, n), -1.0)
         for mask in range(masks):

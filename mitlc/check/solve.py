@@ -219,7 +219,9 @@ def pmax_horizon(
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     deadline: Deadline | None = None,
 ) -> tuple[float, list[FloatArray]]:
-    """The maximal probability of success within ``horizon`` steps from the initial state, and
+    """The maximal probability of success within ``horizon`` steps from the initial state
+    (:func:`mitlc.task.rules.success` of the state the episode stops in; epsilon jumps take no
+    step, and none is taken once the horizon is reached, where the episode is over), and
     the values (``values[r][mask, x]``: ``r`` steps remaining, the sets in ``mask`` seen), all
     ``horizon + 1`` of them (what a time-dependent policy needs), or with ``keep_history`` off
     only the last (the memory of one table instead of ``horizon + 1``).
@@ -263,8 +265,7 @@ def pmax_horizon(
     jump_targets = t.targets[t.indptr[jumps]]
     fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
     raw = _ends(product)
-    table = raw.copy()
-    _settle(table, jump_sources, jump_targets)
+    table = raw.copy()  # no step left: the episode is over, so no jump is taken either
     history = [table.copy()]
     slot = np.zeros(n, dtype=np.int64)
     dirty = np.arange(n)

@@ -59,8 +59,8 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
     # pending[mask, x]: success from x with no round completed yet; done[mask, x]: a round was
     # completed. Both start as the success of an episode that ends there (mitlc.task.rules),
     # and a round that completes empties the frontier, as in every run of the task monitor.
+    # With no step left the episode is over: no jump is taken there.
     pending, done = _ends(product, rounds=0), _ends(product, rounds=1)
-    pending, done = _jump(pending, plans), _jump(done, plans)
     end_pending, end_done = pending.copy(), done.copy()
     for _ in range(horizon):
         next_pending, next_done = end_pending.copy(), end_done.copy()

@@ -51,6 +51,7 @@ from mitlc.learn.vector import ProductVectorEnv
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse
+from mitlc.task.horizon import short_horizon_note
 from mitlc.worlds import World, load_world
 from mitlc.worlds.env_task import is_open_world
 
@@ -135,6 +136,14 @@ def prepare_world(
     if is_open_world(world_path):
         return prepare_open(Path(world_path), config, spec, deadline=deadline)
     return prepare(Path(world_path), config, spec, deadline=deadline)
+
+
+def setting_notes(setting: Setting | OpenSetting) -> list[str]:
+    """One-line notes on a run's setting: a horizon shorter than the task needs to be decided
+    (:func:`mitlc.task.horizon.short_horizon_note`)."""
+    world = setting.world
+    note = short_horizon_note(parse(world.spec, world.spec_source), world.horizon)
+    return [] if note is None else [note]
 
 
 def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
@@ -364,21 +373,26 @@ def train(
     progress: Callable[[Progress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     deadline: Deadline | None = None,
+    notes: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Train ``config.algo`` on the world file's product for ``config.episodes`` episodes in
     all, writing the run to ``out`` (see the module docstring), which it locks meanwhile.
     ``should_stop`` is polled after every step; when it says so, the run checkpoints and
     returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
-    :func:`prepare`), not the training, which runs its episodes."""
+    :func:`prepare`), not the training, which runs its episodes. ``notes`` is given what the
+    user should know before the run (:func:`setting_notes`)."""
     if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
         from mitlc.learn import sb3
 
         return sb3.train(
             world_path, config, out, spec=spec, resume=resume, progress=progress,
-            should_stop=should_stop, deadline=deadline,
+            should_stop=should_stop, deadline=deadline, notes=notes,
         )  # fmt: skip
     directory = Path(out)
     setting = prepare_world(world_path, config, spec, deadline=deadline)
+    if notes is not None:
+        for note in setting_notes(setting):
+            notes(note)
     if resume:
         read_config(directory)  # a run directory at all?
     else:

@@ -67,6 +67,7 @@ from mitlc.learn.run import (
     _truncate_metrics,
     _write_json,
     prepare_world,
+    setting_notes,
     read_config,
 )
 from mitlc.learn.rundir import locked
@@ -179,6 +180,7 @@ def train(
     progress: Callable[[Progress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     deadline: Deadline | None = None,
+    notes: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Train ``config.algo`` (an ``sb3-*`` name) as :func:`mitlc.learn.run.train` trains
     mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all."""
@@ -187,6 +189,9 @@ def train(
     algorithm(config.algo)  # SB3 installed?
     directory = Path(out)
     setting = prepare_world(world_path, config, spec, deadline=deadline)
+    if notes is not None:
+        for note in setting_notes(setting):
+            notes(note)
     if resume:
         read_config(directory)
     else:
