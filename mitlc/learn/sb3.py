@@ -67,8 +67,8 @@ from mitlc.learn.run import (
     _truncate_metrics,
     _write_json,
     prepare_world,
-    setting_notes,
     read_config,
+    setting_notes,
 )
 from mitlc.learn.rundir import locked
 from mitlc.learn.state import one_line, restore
