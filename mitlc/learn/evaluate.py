@@ -1,19 +1,20 @@
 """How good a learned policy is: ``evaluate(run_directory) -> Evaluation``.
 
-The greedy policy runs ``episodes`` seeded episodes, one per slot of a :class:`VecProduct`
-(each slot's first episode only, so short failures are not over-counted); its success rate
-comes with a 95% Wilson score interval (Wilson, JASA 1927). Beside it stand the optimum of the
-same event, :func:`mitlc.check.solve.pmax_horizon` on the product (for a POMDP the fully
-observable value, an upper bound, and below it the exact success of an observation-based
-policy, :func:`mitlc.check.observed.observed_bound`; Storm's belief bounds on request), and,
-when the policy is
-memoryless on an MDP's product (tabular Q, DQN), its exact success probability
+The greedy policy runs ``episodes`` seeded episodes through the one Monte-Carlo estimate of
+every kind of world, :func:`mitlc.learn.montecarlo.monte_carlo` (each slot's first episode
+only, so short episodes are not over-counted): in mitlc's simulator of a finite product
+(:func:`product_batches`) or in the wrapped envs of a world that is not finite
+(:func:`mitlc.learn.plane_run.open_batches`). Its success rate comes with a 95% Wilson score
+interval (Wilson, JASA 1927). Beside it stand, for a finite world, the optimum of the same
+event, :func:`mitlc.check.solve.pmax_horizon` on the product (for a POMDP the fully observable
+value, an upper bound, and below it the exact success of an observation-based policy,
+:func:`mitlc.check.observed.observed_bound`; Storm's belief bounds on request), and, when the
+policy is memoryless on an MDP's product (tabular Q, DQN), its exact success probability
 (:func:`mitlc.learn.exact.policy_success`).
 """
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,15 +23,12 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from mitlc.check.solve import pmax_horizon
-from mitlc.learn.base import Policy
 from mitlc.learn.exact import policy_success
+from mitlc.learn.montecarlo import Batches, monte_carlo, wilson
 from mitlc.learn.run import Setting, load_learner
 from mitlc.learn.vec import VecProduct
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import IntArray
-
-Z95 = 1.959963984540054
-"""The standard normal quantile of 0.975."""
 
 
 @runtime_checkable
@@ -40,17 +38,6 @@ class Memoryless(Protocol):
     def choices(self) -> IntArray:
         """``choices[mask, x]``: the product choice taken (-1 at the absorbing states)."""
         ...
-
-
-def wilson(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
-    """The Wilson score interval of a binomial proportion."""
-    if trials <= 0:
-        return 0.0, 1.0
-    p = successes / trials
-    denominator = 1.0 + z * z / trials
-    centre = (p + z * z / (2 * trials)) / denominator
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
-    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,8 +77,10 @@ class Evaluation:
         return "fully observable upper bound" if self.pomdp else "exact"
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready data."""
+        """JSON-ready data. The ratios to the optimum are ``None`` where it is ``None`` (no
+        exact optimum) or 0 (an exact optimum that no policy exceeds: the ratio is 0 / 0)."""
         low, high = self.interval
+        positive = self.optimum if self.optimum is not None and self.optimum > 0 else None
         data: dict[str, Any] = {
             "world": self.world,
             "algo": self.algo,
@@ -103,11 +92,11 @@ class Evaluation:
             "exact": self.exact,
             "optimum": self.optimum,
             "optimum_kind": self._optimum_kind(),
-            "ratio": self.success_rate / self.optimum if self.optimum else None,
+            "ratio": self.success_rate / positive if positive is not None else None,
             "seconds": round(self.seconds, 3),
         }
-        if self.exact is not None and self.optimum:
-            data["exact_ratio"] = self.exact / self.optimum
+        if self.exact is not None and positive is not None:
+            data["exact_ratio"] = self.exact / positive
         if self.bounds is not None:
             data["bounds"] = self.bounds
         if self.lower is not None:
@@ -119,19 +108,19 @@ class Evaluation:
 def _plane_evaluation(directory: Path, episodes: int | None, seed: int) -> Evaluation:
     """The run of a world that is not finite: greedy episodes in its wrapped envs, no
     optimum."""
-    from mitlc.learn.plane_run import monte_carlo_open
+    from mitlc.learn.plane_run import open_batches
     from mitlc.learn.run import load_open_learner
 
     start = time.perf_counter()
     setting, learner = load_open_learner(directory)
     count = episodes if episodes is not None else setting.config.eval_episodes
-    successes, mean_return = monte_carlo_open(setting, learner.policy(), count, seed)
+    estimate = monte_carlo(open_batches(setting, seed), learner.policy(), count)
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,
-        episodes=count,
-        successes=successes,
-        mean_return=mean_return,
+        episodes=estimate.trials,
+        successes=estimate.successes,
+        mean_return=estimate.mean_return,
         exact=None,
         optimum=None,
         pomdp=setting.world.is_pomdp,
@@ -140,21 +129,15 @@ def _plane_evaluation(directory: Path, episodes: int | None, seed: int) -> Evalu
     )
 
 
-def monte_carlo(setting: Setting, policy: Policy, episodes: int, seed: int) -> tuple[int, float]:
-    """Successes and mean return of ``episodes`` greedy episodes, one per slot."""
-    env = VecProduct(setting.tables, episodes, np.random.default_rng(seed))
-    policy.reset(episodes)
-    finished = np.zeros(episodes, dtype=bool)
-    success = np.zeros(episodes, dtype=bool)
-    returns = np.zeros(episodes)
-    while not finished.all():
-        step = env.step(policy.act(env))
-        policy.observe(step)
-        first = step.done & ~finished
-        success[first] = step.success[first]
-        returns[first] = step.episode_return[first]
-        finished |= step.done
-    return int(success.sum()), float(returns.mean())
+def product_batches(setting: Setting, seed: int) -> Batches:
+    """The batches of :func:`mitlc.learn.montecarlo.monte_carlo` in mitlc's simulator of the
+    finite product: the batch of episodes ``first ..`` draws from ``default_rng((seed,
+    first))``."""
+
+    def batch(count: int, first: int) -> VecProduct:
+        return VecProduct(setting.tables, count, np.random.default_rng((seed, first)))
+
+    return batch
 
 
 def evaluate(
@@ -179,7 +162,7 @@ def evaluate(
     setting, learner = load_learner(Path(directory), deadline=clock)
     count = episodes if episodes is not None else setting.config.eval_episodes
     policy = learner.policy()
-    successes, mean_return = monte_carlo(setting, policy, count, seed)
+    estimate = monte_carlo(product_batches(setting, seed), policy, count)
     horizon = setting.world.horizon
     optimum, _ = pmax_horizon(
         setting.product, horizon, keep_history=False, deadline=clock.at("pmax_horizon")
@@ -209,9 +192,9 @@ def evaluate(
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,
-        episodes=count,
-        successes=successes,
-        mean_return=mean_return,
+        episodes=estimate.trials,
+        successes=estimate.successes,
+        mean_return=estimate.mean_return,
         exact=exact,
         optimum=optimum,
         pomdp=setting.world.is_pomdp,

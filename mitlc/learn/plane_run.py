@@ -10,7 +10,8 @@ Q-learning where the env's observation is discrete
 checkpoints are those of :mod:`mitlc.learn.run`. A checkpoint holds the learner, the tally and,
 for each env, the task monitor's state and, where the env has one (a continuous world's
 robot), the env's state, so a resumed run of a continuous world goes on exactly. Evaluation is
-Monte-Carlo only: no exact optimum exists, and the reports say so.
+Monte-Carlo only (:func:`mitlc.learn.montecarlo.monte_carlo` over :func:`open_batches`, the one
+estimate of every kind of world): no exact optimum exists, and the reports say so.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from mitlc.automata import DigitalAutomaton, translate
 from mitlc.learn.base import Learner, Policy
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.envvec import VectorTask, task_vector
+from mitlc.learn.montecarlo import Batches
 from mitlc.learn.rundir import RunError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 from mitlc.syntax import parse
@@ -82,6 +84,18 @@ def make_vector(setting: OpenSetting, num_envs: int, seed: int) -> VectorTask:
     return task_vector([open_env(setting) for _ in range(num_envs)], seed=seed)
 
 
+def open_batches(setting: OpenSetting, seed: int) -> Batches:
+    """The batches of :func:`mitlc.learn.montecarlo.monte_carlo` in the world's wrapped envs:
+    episode ``j`` of an estimate starts from a reset with ``base + j``, ``base`` a 63-bit
+    number drawn from ``seed`` (so that the estimates of nearby seeds share no episodes)."""
+    base = int(np.random.SeedSequence(seed).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+    def batch(count: int, first: int) -> VectorTask:
+        return make_vector(setting, count, base + first)
+
+    return batch
+
+
 def make_open_learner(setting: OpenSetting, rng: np.random.Generator) -> Learner:
     """The run's learner on the world's wrapped envs: DQN, the recurrent DQN (for a world
     with a noisy sensor) or, on a discrete observation, tabular Q-learning."""
@@ -130,24 +144,6 @@ def make_open_learner(setting: OpenSetting, rng: np.random.Generator) -> Learner
     from mitlc.learn.dqn import DQNLearner
 
     return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
-
-
-def monte_carlo_open(
-    setting: OpenSetting, policy: Policy, episodes: int, seed: int
-) -> tuple[int, float]:
-    """Successes and mean return of ``episodes`` greedy episodes (64 at a time)."""
-    width = min(64, episodes)
-    vector = make_vector(setting, width, seed)
-    policy.reset(width)
-    wins, returns, ended = 0, 0.0, 0
-    while ended < episodes:
-        step = vector.step(policy.act(vector))
-        policy.observe(step)
-        done = np.flatnonzero(step.done)[: episodes - ended]
-        wins += int(step.success[done].sum())
-        returns += float(step.episode_return[done].sum())
-        ended += len(done)
-    return wins, returns / max(ended, 1)
 
 
 def rollouts_plane(
