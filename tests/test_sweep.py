@@ -319,8 +319,12 @@ def test_the_report_uses_the_raw_success_where_no_optimum_exists(tmp_path: Path)
     assert data["worlds"]["lake"]["settings"]["a"]["mean"][0] == pytest.approx(np.mean(scores))
     markdown = (tmp_path / "report.md").read_text()
     assert "Score: success rate (no exact optimum)." in markdown
-    assert {p.name for p in written.files} == {"report.json", "report.md",
-                                               "performance_profile.png", "learning_curves.png"}
+    assert {p.name for p in written.files} == {
+        "report.json",
+        "report.md",
+        "performance_profile.png",
+        "learning_curves.png",
+    }
 
 
 def test_report_of_a_directory_without_finished_trials_is_one_line(tmp_path: Path) -> None:
@@ -335,3 +339,36 @@ def test_report_of_a_directory_without_finished_trials_is_one_line(tmp_path: Pat
     (broken / RESULT).write_text("{not json")
     done = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert done.exit_code == 1 and f"{broken / RESULT}: not a trial's result" in done.output
+
+
+NEVER = (
+    (ROOT / "specs" / "paper" / "case1.yaml")
+    .read_text()
+    .replace("spec: case1.mitl", 'spec: {formula: "F[0,3] a"}')
+)
+"""Case 1 with a task no policy meets: ``a`` is 5 moves from the start, the task asks for it
+within 3 steps (an exact optimum of 0)."""
+
+
+def test_an_optimum_of_zero_is_an_exact_optimum(tmp_path: Path) -> None:
+    """A finite world whose optimum is exactly 0 has an exact optimum (every policy attains
+    it: score 1), not "no exact optimum"; the report keeps it among the exact worlds."""
+    from mitlc.sweep.report import report
+    from mitlc.sweep.trial import NO_OPTIMUM, OVER_OPTIMUM, score
+
+    assert score(0.0, 0.0) == (1.0, OVER_OPTIMUM)
+    assert score(0.3, 0.6) == (0.5, OVER_OPTIMUM) and score(0.3, None) == (0.3, NO_OPTIMUM)
+    (tmp_path / "never.yaml").write_text(NEVER.replace("name: case1-5x5", "name: never"))
+    sweep_file = write(tmp_path, TINY.replace(WORLDS, f"[{tmp_path / 'never.yaml'}, "
+                                              f"{ROOT}/specs/gym/frozenlake4x4.yaml]")
+                       .replace("episodes: 1500", "episodes: 300"))  # fmt: skip
+    out = tmp_path / "out"
+    for trial in load_sweep(sweep_file).trials:
+        result = run_trial(trial, out)
+        if trial.world_name == "never":
+            assert result["optimum"] == 0.0 and result["optimum_kind"] == "exact"
+            assert result["score"] == 1.0 and result["score_kind"] == OVER_OPTIMUM
+            assert result["success_rate"] == 0.0 and result["exact"] == 0.0
+    data = report(out, reps=100).data
+    assert data["worlds"]["never"]["score_kind"] == OVER_OPTIMUM
+    assert data["across_worlds"]["worlds"] == ["frozenlake-4x4", "never"]

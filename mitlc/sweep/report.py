@@ -177,13 +177,18 @@ def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
     return Report(tuple(files), data)
 
 
+def has_optimum(settings: dict[str, dict[int, dict[str, Any]]]) -> bool:
+    """Whether every trial of a world (its ``settings``) has an exact optimum (0 included:
+    a world where no policy succeeds has one)."""
+    return all(r.get("optimum") is not None for runs in settings.values() for r in runs.values())
+
+
 def normalised(
     by_world: dict[str, dict[str, dict[int, dict[str, Any]]]],
 ) -> dict[str, np.ndarray[Any, Any]]:
     """Each setting's scores (seeds x worlds) over the worlds with an exact optimum that it
     ran on all of, and the seeds it has on each of them."""
-    exact = {w: s for w, s in by_world.items()
-             if all(r["optimum"] for runs in s.values() for r in runs.values())}  # fmt: skip
+    exact = {w: s for w, s in by_world.items() if has_optimum(s)}
     names = sorted({name for s in exact.values() for name in s})
     scores = {}
     for name in names:
@@ -202,9 +207,8 @@ def _across(
     scores = normalised(by_world)
     if not scores or len(by_world) < 2:
         return {}
-    return {"worlds": sorted(w for w in by_world if all(
-        r["optimum"] for runs in by_world[w].values() for r in runs.values())),
-        "settings": interval_estimates(scores, reps, seed)}  # fmt: skip
+    return {"worlds": sorted(w for w, settings in by_world.items() if has_optimum(settings)),
+            "settings": interval_estimates(scores, reps, seed)}  # fmt: skip
 
 
 def _cell(values: list[float]) -> str:

@@ -10,9 +10,12 @@ over. ``result.json`` is written atomically, last: its presence means the trial 
 
 The score of a trial is its greedy success over the exact optimum of the same event
 (``pmax_horizon``) where the world is finite and an MDP: the exact success of the policy where
-it is known (a memoryless policy on an MDP), else the Monte-Carlo rate. For a POMDP the
-optimum is the fully observable upper bound; for a world that is not finite there is none, and
-the score is the raw success rate (``score_kind`` says which).
+it is known (a memoryless policy on an MDP), else the Monte-Carlo rate
+(:func:`mitlc.learn.montecarlo.monte_carlo`, through :func:`mitlc.learn.evaluate.evaluate`). For
+a POMDP the optimum is the fully observable upper bound; for a world that is not finite there
+is none, and the score is the raw success rate (``score_kind`` says which). An optimum of
+exactly 0 is an exact optimum all the same: no policy succeeds, so every policy attains it and
+scores 1 (:func:`score`).
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from mitlc.sweep.spec import Trial
 
 RESULT, TRIAL = "result.json", "trial.json"
 TRIALS = "trials"
+OVER_OPTIMUM, NO_OPTIMUM = "success / optimum", "success rate (no exact optimum)"
+"""The two kinds of score (``score_kind``)."""
 
 
 def trial_directory(root: Path, trial: Trial) -> Path:
@@ -74,6 +79,7 @@ def run_trial(
     summary = json.loads((directory / SUMMARY).read_text(encoding="utf-8"))
     learned = evaluation.exact if evaluation.exact is not None else evaluation.success_rate
     optimum = evaluation.optimum
+    value, kind = score(learned, optimum)
     result = {
         **trial.to_data(),
         "trial_id": trial.trial_id,
@@ -84,8 +90,8 @@ def run_trial(
         "exact": evaluation.exact,
         "optimum": optimum,
         "optimum_kind": evaluation.summary()["optimum_kind"],
-        "score": learned / optimum if optimum else evaluation.success_rate,
-        "score_kind": "success / optimum" if optimum else "success rate (no exact optimum)",
+        "score": value,
+        "score_kind": kind,
         "train_episodes": summary["episodes"],
         "train_steps": summary["steps"],
         "train_seconds": summary["seconds"],
@@ -93,6 +99,15 @@ def run_trial(
     }
     _write(directory / RESULT, result, write_atomically)
     return result
+
+
+def score(learned: float, optimum: float | None) -> tuple[float, str]:
+    """A trial's score and what it is: ``learned / optimum`` where the world has an exact
+    optimum (an optimum of 0 is attained by every policy: 1), else the raw success rate
+    ``learned``."""
+    if optimum is None:
+        return learned, NO_OPTIMUM
+    return (learned / optimum if optimum > 0 else 1.0), OVER_OPTIMUM
 
 
 def _write(path: Path, data: Any, write: Callable[[Path, bytes], None]) -> None:
