@@ -92,7 +92,7 @@ def _emit(text: str, output: Path | None) -> None:
     if output is None:
         typer.echo(text, nl=False)
     else:
-        from mitlc.automata.dot import write_atomically
+        from mitlc.files import write_atomically
 
         write_atomically(output, text.encode("utf-8"))
 

@@ -73,9 +73,9 @@ def check_command(
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
     from mitlc.automata import LazyAutomaton
-    from mitlc.automata.dot import write_atomically
     from mitlc.check import check
     from mitlc.check.drn import to_drn
+    from mitlc.files import write_atomically
     from mitlc.task.horizon import short_horizon_note
     from mitlc.worlds import load_world
 

@@ -16,8 +16,9 @@ from typer.testing import CliRunner
 
 from mitlc.automata import compile_formula
 from mitlc.automata.artifact import from_data, to_json
-from mitlc.automata.dot import to_dot, write_atomically
+from mitlc.automata.dot import to_dot
 from mitlc.cli import app
+from mitlc.files import write_atomically
 from mitlc.syntax import parse, parse_file
 from tests.conftest import GOLDEN, ROOT, check_golden
 
@@ -151,7 +152,7 @@ def test_monitor_verdicts(tmp_path: Path) -> None:
 
 
 def test_atomic_writes_replace_whole_files_with_the_usual_permissions(tmp_path: Path) -> None:
-    from mitlc.automata.dot import write_atomically
+    from mitlc.files import write_atomically
 
     target = tmp_path / "deep" / "out.json"
     old = os.umask(0o027)

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy
 
-from mitlc.automata.dot import write_atomically
+from mitlc.files import write_atomically
 from mitlc.learn.rundir import RunError, decode, parse_json, read_bytes, read_text
 
 INDEX, LEGACY = "checkpoint.json", "checkpoint.pkl"

@@ -30,7 +30,8 @@ from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FuncFormatter
 
 from mitlc.automata import compile_formula
-from mitlc.automata.dot import render, to_dot, write_atomically
+from mitlc.automata.dot import render, to_dot
+from mitlc.files import write_atomically
 from mitlc.learn.run import (
     METRICS,
     RunError,

@@ -156,7 +156,8 @@ def plot_plane_run(
     greedy trajectories in the room (:func:`mitlc.learn.plot_plane.plane_figure`), and the
     timed automaton. A gymnasium env has no room to draw its trajectories in."""
     from mitlc.automata import compile_formula
-    from mitlc.automata.dot import render, to_dot, write_atomically
+    from mitlc.automata.dot import render, to_dot
+    from mitlc.files import write_atomically
     from mitlc.learn.plane_run import rollouts_plane
     from mitlc.learn.plot import AUTOMATON, LEARNING_CURVE, TRAJECTORIES, learning_curve, png_bytes
     from mitlc.learn.run import load_open_learner

@@ -36,8 +36,8 @@ import numpy as np
 
 from mitlc import __version__
 from mitlc.automata import DigitalAutomaton, translate
-from mitlc.automata.dot import write_atomically
 from mitlc.errors import MitlcError
+from mitlc.files import write_atomically
 from mitlc.learn import checkpoint
 from mitlc.learn.base import Learner, automaton_potential, potential
 from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data

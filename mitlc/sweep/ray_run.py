@@ -70,7 +70,7 @@ def trainable(config: dict[str, Any]) -> None:
 
 def _record(out: Path, sweep: Sweep, resume: bool) -> None:
     """Write ``out/sweep.json``, or, resuming, check that it is this sweep's."""
-    from mitlc.automata.dot import write_atomically
+    from mitlc.files import write_atomically
 
     path = out / SWEEP
     ids = [t.trial_id for t in sweep.trials]

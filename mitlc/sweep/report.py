@@ -130,7 +130,7 @@ def _results(directory: Path) -> list[dict[str, Any]]:
 
 def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
     """Compute and write the report of the sweep in ``directory`` (see the module docstring)."""
-    from mitlc.automata.dot import write_atomically
+    from mitlc.files import write_atomically
 
     directory = Path(directory)
     results = _results(directory)

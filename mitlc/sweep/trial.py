@@ -56,7 +56,7 @@ def run_trial(
     progress: Callable[[Any], None] | None = None,
 ) -> dict[str, Any]:
     """Train and evaluate ``trial`` under ``root`` (see the module docstring); its result."""
-    from mitlc.automata.dot import write_atomically
+    from mitlc.files import write_atomically
     from mitlc.learn import checkpoint
     from mitlc.learn.config import config_for
     from mitlc.learn.evaluate import evaluate
