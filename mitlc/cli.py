@@ -244,7 +244,7 @@ def schema_command(
     ] = "world",
 ) -> None:
     """Print the JSON schema of world files, for editors."""
-    from mitlc.worlds.schema import SCHEMA_KINDS, world_json_schema
+    from mitlc.worlds.schemas import SCHEMA_KINDS, world_json_schema
 
     if kind not in SCHEMA_KINDS:
         raise UsageError(f"mitlc: unknown schema {kind!r}; one of {', '.join(SCHEMA_KINDS)}")

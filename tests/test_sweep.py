@@ -142,7 +142,8 @@ def test_the_intervals_are_rliables_stratified_bootstrap() -> None:
     from rliable import library as rly
     from rliable import metrics
 
-    from mitlc.sweep.report import STATISTICS, interval_estimates, quiet
+    from mitlc.sweep.report import STATISTICS, interval_estimates
+    from mitlc.sweep.scores import quiet
 
     scores = fixed_scores()
     ours = interval_estimates(scores, reps=300, seed=3)

@@ -36,7 +36,7 @@ def performance_profile(
     exceeds tau, per setting, with its band; ``None`` without such worlds."""
     from rliable import library as rly
 
-    from mitlc.sweep.report import TAUS, normalised, quiet
+    from mitlc.sweep.scores import TAUS, normalised, quiet
 
     scores = normalised(by_world)
     if not scores:
@@ -81,7 +81,7 @@ def learning_curves(
     each logged point, over the points every seed logged) with its band."""
     from rliable import library as rly
 
-    from mitlc.sweep.report import quiet
+    from mitlc.sweep.scores import quiet
 
     count = max(len(by_world), 1)
     cols = min(count, 2)

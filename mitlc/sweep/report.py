@@ -22,12 +22,9 @@ tables), ``report.json`` (every figure), ``performance_profile.png`` and
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import json
-import warnings
 from collections import defaultdict
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,13 +32,13 @@ from typing import Any
 import numpy as np
 
 from mitlc.sweep import stats
+from mitlc.sweep.scores import has_optimum, normalised, quiet
 from mitlc.sweep.spec import SweepError
 from mitlc.sweep.trial import RESULT, TRIALS
 
 STATISTICS = ("iqm", "median", "mean", "optimality_gap")
 REPORT_MD, REPORT_JSON = "report.md", "report.json"
 PROFILE_PNG, CURVES_PNG = "performance_profile.png", "learning_curves.png"
-TAUS = np.linspace(0.0, 1.0, 101)
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,23 +47,6 @@ class Report:
 
     files: tuple[Path, ...]
     data: dict[str, Any]
-
-
-@contextlib.contextmanager
-def quiet(seed: int | None = None) -> Iterator[None]:
-    """arch's FutureWarning on rliable's ``random_state`` silenced (library code warns no one)
-    and, with ``seed``, numpy's global generator seeded meanwhile and then put back: rliable's
-    stratified bootstrap draws its resamples from it (``np.random.choice``), whatever
-    ``random_state`` says."""
-    state = np.random.get_state()
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            if seed is not None:
-                np.random.seed(seed)
-            yield
-    finally:
-        np.random.set_state(state)
 
 
 def interval_estimates(
@@ -175,30 +155,6 @@ def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
     write_atomically(directory / CURVES_PNG, learning_curves(directory, by_world, seed))
     files.append(directory / CURVES_PNG)
     return Report(tuple(files), data)
-
-
-def has_optimum(settings: dict[str, dict[int, dict[str, Any]]]) -> bool:
-    """Whether every trial of a world (its ``settings``) has an exact optimum (0 included:
-    a world where no policy succeeds has one)."""
-    return all(r.get("optimum") is not None for runs in settings.values() for r in runs.values())
-
-
-def normalised(
-    by_world: dict[str, dict[str, dict[int, dict[str, Any]]]],
-) -> dict[str, np.ndarray[Any, Any]]:
-    """Each setting's scores (seeds x worlds) over the worlds with an exact optimum that it
-    ran on all of, and the seeds it has on each of them."""
-    exact = {w: s for w, s in by_world.items() if has_optimum(s)}
-    names = sorted({name for s in exact.values() for name in s})
-    scores = {}
-    for name in names:
-        on = [w for w in sorted(exact) if name in exact[w]]
-        if len(on) != len(exact) or not on:
-            continue
-        seeds = sorted(set.intersection(*(set(exact[w][name]) for w in on)))
-        if seeds:
-            scores[name] = np.array([[exact[w][name][s]["score"] for w in on] for s in seeds])
-    return scores
 
 
 def _across(

@@ -3,7 +3,8 @@
 
 from mitlc.worlds.load import Problem, WorldError, load_world, read_world_file
 from mitlc.worlds.model import Observations, Rewards, Sparse, World
-from mitlc.worlds.schema import WorldFile, world_json_schema
+from mitlc.worlds.schema import WorldFile
+from mitlc.worlds.schemas import world_json_schema
 
 __all__ = [
     "Observations",

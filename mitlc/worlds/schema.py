@@ -517,27 +517,3 @@ ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
 }
 """The model at each place of an env world file, by pydantic's error location (union tags
 included, a label's name as ``*``)."""
-
-
-def world_json_schema(kind: str = "world") -> dict[str, Any]:
-    """The JSON schema (draft 2020-12) of a grid world file (``world``), a gymnasium env world
-    file (``env-world``) or a continuous world file (``plane-world``), for editors and other
-    tools; a ``KeyError`` for another kind."""
-    if kind == "plane-world":
-        from mitlc.worlds.plane_schema import PlaneWorldFile
-
-        model: type[BaseModel] = PlaneWorldFile
-    else:
-        models: dict[str, type[BaseModel]] = {"world": WorldFile, "env-world": EnvWorldFile}
-        model = models[kind]
-    schema = model.model_json_schema()
-    labels = schema["properties"]["labels"]
-    if "patternProperties" in labels:
-        labels["additionalProperties"] = False  # names must match the pattern
-    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
-    schema["title"] = "mitlc " + kind.replace("-", " ")
-    return schema
-
-
-SCHEMA_KINDS = ("world", "env-world", "plane-world")
-"""The kinds of :func:`world_json_schema`."""

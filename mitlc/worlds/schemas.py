@@ -1,0 +1,33 @@
+"""The JSON schemas of the three kinds of world file, for editors and other tools."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel
+
+from mitlc.worlds.plane_schema import PlaneWorldFile
+from mitlc.worlds.schema import EnvWorldFile, WorldFile
+
+
+def world_json_schema(kind: str = "world") -> dict[str, Any]:
+    """The JSON schema (draft 2020-12) of a grid world file (``world``), a gymnasium env world
+    file (``env-world``) or a continuous world file (``plane-world``), for editors and other
+    tools; a ``KeyError`` for another kind."""
+    models: dict[str, type[BaseModel]] = {
+        "world": WorldFile,
+        "env-world": EnvWorldFile,
+        "plane-world": PlaneWorldFile,
+    }
+    model = models[kind]
+    schema = model.model_json_schema()
+    labels = schema["properties"]["labels"]
+    if "patternProperties" in labels:
+        labels["additionalProperties"] = False  # names must match the pattern
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "mitlc " + kind.replace("-", " ")
+    return schema
+
+
+SCHEMA_KINDS = ("world", "env-world", "plane-world")
+"""The kinds of :func:`world_json_schema`."""
