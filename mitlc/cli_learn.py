@@ -139,8 +139,9 @@ def train_command(
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
     from mitlc.learn.config import config_for
-    from mitlc.learn.run import CONFIG, read_config, train
+    from mitlc.learn.run import train
     from mitlc.learn.rundir import RunError
+    from mitlc.learn.setting import CONFIG, read_config
 
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
@@ -314,8 +315,8 @@ def plot_command(
     seed: Annotated[int, typer.Option("--seed", min=0, help="The trajectories' seed.")] = 0,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
-    from mitlc.learn.plot import plot_run
-    from mitlc.learn.run import read_config
+    from mitlc.learn.plots import plot_run
+    from mitlc.learn.setting import read_config
 
     read_config(run)
     for path in plot_run(run, out, trajectories=trajectories, seed=seed):

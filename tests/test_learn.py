@@ -15,7 +15,8 @@ from mitlc.automata import translate
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.base import automaton_distance, potential, step_discounts
 from mitlc.learn.config import ConfigError, Discount, resolve
-from mitlc.learn.evaluate import evaluate, product_batches
+from mitlc.learn.evaluate import evaluate
+from mitlc.learn.setting import batches
 from mitlc.learn.exact import policy_success
 from mitlc.learn.montecarlo import monte_carlo, wilson
 from mitlc.learn.qlearning import QLearner, TabularPolicy
@@ -156,7 +157,7 @@ def test_simulator_success_matches_the_exact_value(spec: str) -> None:
 
     n = 20_000
     setting = replace(prepare(CASE1, config()), tables=t)
-    estimate = monte_carlo(product_batches(setting, 11), Fixed(t, np.zeros((1, 1, 1))), n)
+    estimate = monte_carlo(batches(setting, 11), Fixed(t, np.zeros((1, 1, 1))), n)
     error = max(np.sqrt(exact * (1 - exact) / n), 1e-3)
     assert estimate.trials == n and abs(estimate.rate - exact) < 4.5 * error, (estimate, exact)
     low, high = estimate.interval

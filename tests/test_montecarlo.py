@@ -15,7 +15,7 @@ from gymnasium import spaces
 from mitlc.learn.base import Episodes, Policy
 from mitlc.learn.config import resolve
 from mitlc.learn.montecarlo import Estimate, first_episodes, monte_carlo, wilson
-from mitlc.learn.plane_run import open_batches, prepare_open
+from mitlc.learn.setting import batches, prepare
 from mitlc.worlds.model import IntArray
 
 START, SAFE, BAD = 0, 1, 2
@@ -80,13 +80,13 @@ class Uniform(Policy):
 def gamble(tmp_path_factory: pytest.TempPathFactory) -> Any:
     path = tmp_path_factory.mktemp("gamble") / "gamble.yaml"
     path.write_text(GAMBLE)
-    return prepare_open(path, resolve({}, {"algo": "dqn"}, discount=0.95, pomdp=False))
+    return prepare(path, resolve({}, {"algo": "dqn"}, discount=0.95, pomdp=False))
 
 
 def first_to_end(setting: Any, policy: Policy, episodes: int, seed: int) -> Estimate:
     """The estimate this module replaced: the first ``episodes`` episodes to *end* over 64
     parallel envs (length-biased: quick failures are over-counted)."""
-    vector = open_batches(setting, seed)(min(64, episodes), 0)
+    vector = batches(setting, seed)(min(64, episodes), 0)
     policy.reset(vector.num_envs)
     wins, returns, ended = 0, 0.0, 0
     while ended < episodes:
@@ -109,7 +109,7 @@ def test_a_uniform_policy_in_an_open_world_is_estimated_without_bias(
 ) -> None:
     """The gamble's true success is 0.1 (by hand); the estimate's Wilson interval holds it
     at 100 and 1,000 episodes, where the first episodes to end say about 0.00 and 0.06."""
-    estimate = monte_carlo(open_batches(gamble, 7), Uniform(3), episodes)
+    estimate = monte_carlo(batches(gamble, 7), Uniform(3), episodes)
     assert estimate.trials == episodes and covers(estimate, TRUE_SUCCESS), estimate
     assert estimate.mean_return == pytest.approx(estimate.rate - 1)  # violated pays -1
     biased = first_to_end(gamble, Uniform(3), episodes, 7)
@@ -124,14 +124,14 @@ def test_the_estimate_is_reproducible_and_independent_of_the_batch_width(gamble:
         def act(self, env: Episodes) -> IntArray:
             return np.ones(env.num_envs, dtype=np.int64)
 
-    one = monte_carlo(open_batches(gamble, 5), Right(), 300)
-    assert one == monte_carlo(open_batches(gamble, 5), Right(), 300, width=64)
+    one = monte_carlo(batches(gamble, 5), Right(), 300)
+    assert one == monte_carlo(batches(gamble, 5), Right(), 300, width=64)
     assert covers(one, SAFE_ON_RIGHT)
-    assert monte_carlo(open_batches(gamble, 6), Right(), 300) != one
+    assert monte_carlo(batches(gamble, 6), Right(), 300) != one
 
 
 def test_first_episodes_counts_each_slot_once(gamble: Any) -> None:
-    success, returns = first_episodes(open_batches(gamble, 1)(50, 0), Uniform(0))
+    success, returns = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
     assert success.shape == returns.shape == (50,)
     assert (returns == np.where(success, 0.0, -1.0)).all()
 

@@ -212,7 +212,7 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     import tests.open_envs  # noqa: F401 - registers MitlcTest/DictChain-v0
     from mitlc.learn.envvec import task_vector
     from mitlc.learn.plane_run import open_env
-    from mitlc.learn.run import load_open_learner
+    from mitlc.learn.run import load_learner
     from tests.test_env_task import DICT_CHAIN
     from tests.test_envvec import CORRIDOR
 
@@ -227,7 +227,7 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     shown = runner.invoke(app, ["eval", str(out), "--episodes", "20", "--json"])
     assert shown.exit_code == 0 and json.loads(shown.output)["optimum"] is None, shown.output
     assert runner.invoke(app, ["plot", str(out)]).exit_code == 0
-    setting, learner = load_open_learner(out)
+    setting, learner = load_learner(out)
     policy = learner.policy()
     flat = [open_env(setting, flatten=True) for _ in range(3)]
     view = task_vector([open_env(setting) for _ in range(3)], seed=7)

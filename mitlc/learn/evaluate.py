@@ -2,10 +2,9 @@
 
 The greedy policy runs ``episodes`` seeded episodes through the one Monte-Carlo estimate of
 every kind of world, :func:`mitlc.learn.montecarlo.monte_carlo` (each slot's first episode
-only, so short episodes are not over-counted): in mitlc's simulator of a finite product
-(:func:`product_batches`) or in the wrapped envs of a world that is not finite
-(:func:`mitlc.learn.plane_run.open_batches`). Its success rate comes with a 95% Wilson score
-interval (Wilson, JASA 1927). Beside it stand, for a finite world, the optimum of the same
+only, so short episodes are not over-counted): in mitlc's simulator of a finite product or in
+the wrapped envs of a world that is not finite (:func:`mitlc.learn.setting.batches`). Its
+success rate comes with a 95% Wilson score interval (Wilson, JASA 1927). Beside it stand, for a finite world, the optimum of the same
 event, :func:`mitlc.check.solve.pmax_horizon` on the product (for a POMDP the fully observable
 value, an upper bound, and below it the exact success of an observation-based policy,
 :func:`mitlc.check.observed.observed_bound`; Storm's belief bounds on request), and, when the
@@ -20,13 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
-import numpy as np
-
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.exact import policy_success
-from mitlc.learn.montecarlo import Batches, monte_carlo, wilson
-from mitlc.learn.run import Setting, load_learner
-from mitlc.learn.vec import VecProduct
+from mitlc.learn.montecarlo import monte_carlo, wilson
+from mitlc.learn.run import load_learner
+from mitlc.learn.setting import Setting, batches
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.worlds.model import IntArray
 
@@ -105,41 +102,6 @@ class Evaluation:
         return data
 
 
-def _plane_evaluation(directory: Path, episodes: int | None, seed: int) -> Evaluation:
-    """The run of a world that is not finite: greedy episodes in its wrapped envs, no
-    optimum."""
-    from mitlc.learn.plane_run import open_batches
-    from mitlc.learn.run import load_open_learner
-
-    start = time.perf_counter()
-    setting, learner = load_open_learner(directory)
-    count = episodes if episodes is not None else setting.config.eval_episodes
-    estimate = monte_carlo(open_batches(setting, seed), learner.policy(), count)
-    return Evaluation(
-        world=setting.world.name,
-        algo=setting.config.algo,
-        episodes=estimate.trials,
-        successes=estimate.successes,
-        mean_return=estimate.mean_return,
-        exact=None,
-        optimum=None,
-        pomdp=setting.world.is_pomdp,
-        bounds=None,
-        seconds=time.perf_counter() - start,
-    )
-
-
-def product_batches(setting: Setting, seed: int) -> Batches:
-    """The batches of :func:`mitlc.learn.montecarlo.monte_carlo` in mitlc's simulator of the
-    finite product: the batch of episodes ``first ..`` draws from ``default_rng((seed,
-    first))``."""
-
-    def batch(count: int, first: int) -> VecProduct:
-        return VecProduct(setting.tables, count, np.random.default_rng((seed, first)))
-
-    return batch
-
-
 def evaluate(
     directory: str | Path,
     *,
@@ -148,47 +110,23 @@ def evaluate(
     pomdp_bounds: bool = False,
     deadline: Deadline | None = None,
 ) -> Evaluation:
-    """Evaluate the run in ``directory`` (its last checkpoint); ``episodes`` defaults to the
-    run's ``eval_episodes``. ``pomdp_bounds`` asks Storm for belief bounds (slow on big
-    worlds; needs stormpy). The set-up and the exact figures stop at ``deadline`` (by default
+    """Evaluate the run in ``directory`` (its last checkpoint), of any world; ``episodes``
+    defaults to the run's ``eval_episodes``. The Monte-Carlo estimate is the one of every world
+    (:func:`mitlc.learn.montecarlo.monte_carlo` over :func:`mitlc.learn.setting.batches`); a
+    finite world adds its optimum and, for a memoryless policy on an MDP, the policy's exact
+    success. ``pomdp_bounds`` asks Storm for belief bounds (slow on big worlds; needs
+    stormpy). The set-up and the exact figures stop at ``deadline`` (by default
     :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds); the POMDP bounds are left out when the
     time runs out during them."""
-    from mitlc.learn.run import is_open_run
-
-    if is_open_run(Path(directory)):
-        return _plane_evaluation(Path(directory), episodes, seed)
     start = time.perf_counter()
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "evaluation")
     setting, learner = load_learner(Path(directory), deadline=clock)
     count = episodes if episodes is not None else setting.config.eval_episodes
     policy = learner.policy()
-    estimate = monte_carlo(product_batches(setting, seed), policy, count)
-    horizon = setting.world.horizon
-    optimum, _ = pmax_horizon(
-        setting.product, horizon, keep_history=False, deadline=clock.at("pmax_horizon")
-    )
-    exact = None
-    if not setting.world.is_pomdp and isinstance(policy, Memoryless):
-        exact = policy_success(setting.product, policy.choices(), horizon)
-    bounds, lower = None, None
-    if setting.world.is_pomdp:
-        from mitlc.check.observed import ObservedBoundError, observed_bound
-
-        try:
-            stage = clock.at("the observation-based bound")
-            found = observed_bound(setting.world, setting.product, horizon=horizon, deadline=stage)
-            lower = found.value
-        except (ObservedBoundError, LimitError):
-            lower = None
-    if setting.world.is_pomdp and pomdp_bounds:
-        from mitlc.check.pomdp import pomdp_bounds as storm_bounds
-
-        try:
-            bounds = storm_bounds(
-                setting.world, setting.automaton, horizon_success=True, deadline=clock
-            )
-        except LimitError:
-            bounds = None
+    estimate = monte_carlo(batches(setting, seed), policy, count)
+    optimum, exact, bounds, lower = None, None, None, None
+    if setting.finite:
+        optimum, exact, bounds, lower = _exact(setting, policy, pomdp_bounds, clock)
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,
@@ -202,3 +140,35 @@ def evaluate(
         seconds=time.perf_counter() - start,
         lower=lower,
     )
+
+
+def _exact(
+    setting: Setting, policy: Any, pomdp_bounds: bool, clock: Deadline
+) -> tuple[float, float | None, dict[str, Any] | None, float | None]:
+    """A finite world's figures: the optimum, the policy's exact success (memoryless policies
+    on an MDP), Storm's POMDP bounds when asked, the observation-based lower bound."""
+    world, product, _ = setting.model()
+    horizon = world.horizon
+    optimum, _ = pmax_horizon(
+        product, horizon, keep_history=False, deadline=clock.at("pmax_horizon")
+    )
+    exact = None
+    if not world.is_pomdp and isinstance(policy, Memoryless):
+        exact = policy_success(product, policy.choices(), horizon)
+    bounds, lower = None, None
+    if world.is_pomdp:
+        from mitlc.check.observed import ObservedBoundError, observed_bound
+
+        try:
+            stage = clock.at("the observation-based bound")
+            lower = observed_bound(world, product, horizon=horizon, deadline=stage).value
+        except (ObservedBoundError, LimitError):
+            lower = None
+    if world.is_pomdp and pomdp_bounds:
+        from mitlc.check.pomdp import pomdp_bounds as storm_bounds
+
+        try:
+            bounds = storm_bounds(world, setting.automaton, horizon_success=True, deadline=clock)
+        except LimitError:
+            bounds = None
+    return optimum, exact, bounds, lower

@@ -12,8 +12,8 @@ run many episodes.) The success rate comes with its 95% Wilson score interval (W
 The slots come in batches of at most ``width`` from ``batches(count, first)``, a fresh batch
 whose slot ``i`` is episode ``first + i``: any :class:`mitlc.learn.base.Episodes`, the common
 interface of mitlc's simulator of a finite product (:class:`mitlc.learn.vec.VecProduct`,
-:func:`mitlc.learn.evaluate.product_batches`) and of a vector of task-wrapped gymnasium envs
-(:class:`mitlc.learn.envvec.VectorTask`, :func:`mitlc.learn.plane_run.open_batches`); each
+:func:`mitlc.learn.setting.batches`) and of a vector of task-wrapped gymnasium envs
+(:class:`mitlc.learn.envvec.VectorTask`, the same function); each
 steps all its slots at once and reports a :class:`mitlc.learn.vec.Step` (``done``,
 ``success``, ``episode_return``) describing the episodes *before* ended ones restart.
 """

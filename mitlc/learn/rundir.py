@@ -25,6 +25,8 @@ from typing import Any
 from mitlc.errors import MitlcError
 
 LOCK = ".lock"
+METRICS, SUMMARY = "metrics.jsonl", "summary.json"
+"""A run's metrics (one line a window) and its summary (written at the end)."""
 METRIC_FIELDS = ("episodes", "success_rate", "return", "epsilon")
 """The numbers every ``metrics.jsonl`` line holds (besides ``steps`` and ``seconds``)."""
 

@@ -48,32 +48,29 @@ import numpy as np
 import numpy.typing as npt
 
 from mitlc.learn import checkpoint
-from mitlc.learn.base import Learner
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.nets import configure_torch
-from mitlc.learn.plane_run import OpenSetting, open_env
-from mitlc.learn.run import (
-    CONFIG,
-    METRICS,
-    SUMMARY,
+from mitlc.learn.rundir import METRICS, SUMMARY, RunError, locked
+from mitlc.learn.runlog import (
     Progress,
-    RunError,
     RunResult,
+    Tally,
+    log_window,
+    progress_of,
+    truncate_metrics,
+    write_json,
+)
+from mitlc.learn.setting import (
+    CONFIG,
     Setting,
-    _log,
-    _progress,
-    _save_config,
-    _Tally,
-    _truncate_metrics,
-    _write_json,
-    prepare_world,
+    prepare,
     read_config,
+    save_config,
     setting_notes,
 )
-from mitlc.learn.rundir import locked
 from mitlc.learn.state import one_line, restore
 from mitlc.limits import Deadline
-from mitlc.product.env import ProductEnv
+from mitlc.product.worlds import task_env
 
 Vectors = npt.NDArray[np.float32]
 
@@ -101,14 +98,12 @@ def algorithm(algo: str) -> tuple[Any, str]:
 # -- the observation -------------------------------------------------------------------------------
 
 
-def wrapped_env(setting: Setting | OpenSetting) -> Any:
+def wrapped_env(setting: Setting) -> Any:
     """The env an sb3 run learns on: the world's wrapped env with the wrapper's flat
     observation (the env's observation flattened, one-hot automaton state, frontier bits: the
-    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network):
-    the product env of a finite world, else the continuous world's or the env's own."""
-    if isinstance(setting, OpenSetting):
-        return open_env(setting, flatten=True)
-    return ProductEnv(setting.world, setting.automaton, flatten=True)
+    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network),
+    for every kind of world (:func:`mitlc.product.worlds.task_env`)."""
+    return task_env(setting.world, setting.automaton, flatten=True)
 
 
 def sb3_settings(config: TrainConfig) -> dict[str, Any]:
@@ -188,7 +183,7 @@ def train(
         raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
     algorithm(config.algo)  # SB3 installed?
     directory = Path(out)
-    setting = prepare_world(world_path, config, spec, deadline=deadline)
+    setting = prepare(world_path, config, spec, deadline=deadline)
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)
@@ -201,7 +196,7 @@ def train(
         return _train(directory, setting, resume, progress, should_stop)
 
 
-def _start(directory: Path, setting: Setting | OpenSetting, resume: bool) -> None:
+def _start(directory: Path, setting: Setting, resume: bool) -> None:
     """Check the locked run directory for a fresh run or a resumed one."""
     if not resume:
         if (directory / CONFIG).exists() or checkpoint.exists(directory):
@@ -222,7 +217,7 @@ def _start(directory: Path, setting: Setting | OpenSetting, resume: bool) -> Non
 
 def _train(
     directory: Path,
-    setting: Setting | OpenSetting,
+    setting: Setting,
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,
@@ -241,7 +236,7 @@ def _train(
     except (ValueError, TypeError, AssertionError, MemoryError) as err:
         where = setting.world_path
         raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None
-    state, tally = ModelState(model, config), _Tally()
+    state, tally = ModelState(model, config), Tally()
     if resume:
         loaded = restore(directory, {"model": state, "tally": tally}, unchecked=UNCHECKED)
         if tally.steps != loaded.steps or model.num_timesteps != loaded.steps:
@@ -254,15 +249,15 @@ def _train(
         model.set_random_seed(config.seed + tally.steps)  # new episodes, not the first ones
         if config.algo == "sb3-dqn":  # the replay memory is not saved: refill it first
             model.learning_starts = tally.steps + s.learning_starts
-        _truncate_metrics(directory / METRICS, tally.episodes)
+        truncate_metrics(directory / METRICS, tally.episodes)
         (directory / SUMMARY).unlink(missing_ok=True)
-    _save_config(directory, setting)
+    save_config(directory, setting)
     run = _Run(directory, config, state, tally, progress, should_stop)
     try:
         with (directory / METRICS).open("a", encoding="utf-8") as run.metrics:
             model.learn(s.steps - tally.steps, callback=run.callback(), reset_num_timesteps=False)
             if run.logged_at != tally.steps:  # the last line, at the run's end or stop
-                _log(run.metrics, tally, run.epsilon())
+                log_window(run.metrics, tally, run.epsilon())
     finally:
         run.save()
     stopped = run.stopped and tally.steps < s.steps
@@ -270,7 +265,7 @@ def _train(
         summary: dict[str, Any] = {"episodes": tally.episodes, "steps": tally.steps}
         summary.update(seconds=round(tally.seconds, 3), success_rate=tally.last_rate)
         summary["mean_return"] = tally.last_return
-        _write_json(directory / SUMMARY, summary)
+        write_json(directory / SUMMARY, summary)
     return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped)
 
 
@@ -286,7 +281,7 @@ class _Run:
         directory: Path,
         config: TrainConfig,
         state: ModelState,
-        tally: _Tally,
+        tally: Tally,
         progress: Callable[[Progress], None] | None,
         should_stop: Callable[[], bool] | None,
     ) -> None:
@@ -323,13 +318,13 @@ class _Run:
         epsilon = self.epsilon()
         logged = steps // s.log_every > before // s.log_every
         if logged:
-            _log(self.metrics, tally, epsilon)
+            log_window(self.metrics, tally, epsilon)
             self.logged_at = steps
         if steps // s.checkpoint_every > before // s.checkpoint_every:
             self.save()
         self.beat += 1
         if self.progress is not None and (logged or self.beat % 50 == 0):
-            self.progress(_progress(tally, s.steps, epsilon))
+            self.progress(progress_of(tally, s.steps, epsilon))
         self.stopped = self.should_stop is not None and self.should_stop()
         return not self.stopped
 
@@ -344,14 +339,3 @@ class _Run:
                 return run.on_step(self.num_timesteps, self.locals["dones"], self.locals["infos"])
 
         return Callback()
-
-
-# -- eval and plot ---------------------------------------------------------------------------------
-
-
-def load_learner(directory: Path, setting: Setting | OpenSetting) -> Learner:
-    """The policy of the sb3 run in ``directory`` (:func:`mitlc.learn.sb3_policy.load_learner`),
-    for :func:`mitlc.learn.run.load_learner`."""
-    from mitlc.learn import sb3_policy
-
-    return sb3_policy.load_learner(directory, setting)

@@ -22,9 +22,9 @@ import torch
 from mitlc.learn import checkpoint
 from mitlc.learn.base import Episodes, Learner, Policy
 from mitlc.learn.nets import Encoder, build, configure_torch, greedy
-from mitlc.learn.plane_run import OpenSetting, make_vector
-from mitlc.learn.run import RunError, Setting
+from mitlc.learn.rundir import RunError
 from mitlc.learn.sb3 import algorithm, sb3_settings, wrapped_env
+from mitlc.learn.setting import Setting, task_vector_of
 from mitlc.learn.state import Mismatch, conform
 from mitlc.learn.vec import Step
 from mitlc.worlds.model import IntArray
@@ -38,7 +38,7 @@ class SB3Policy(Policy):
     the module docstring); memoryless, so :meth:`choices` gives it for exact evaluation on an
     MDP."""
 
-    def __init__(self, net: Any, encoder: Encoder, setting: Setting | OpenSetting) -> None:
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
         self.net, self.encoder = net, encoder
         self.tables = setting.tables if isinstance(setting, Setting) else None
         self.dqn = setting.config.algo == "sb3-dqn"
@@ -83,7 +83,7 @@ class SB3RecurrentPolicy(Policy):
     :class:`~mitlc.learn.base.Episodes`, its LSTM state carried over each episode and
     restarted with the next."""
 
-    def __init__(self, net: Any, encoder: Encoder, setting: Setting | OpenSetting) -> None:
+    def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
         self.net, self.encoder = net, encoder
         self.reset(1)
 
@@ -110,12 +110,12 @@ class SB3Learner(Learner):
     """A trained SB3 policy loaded for ``mitlc eval`` and ``mitlc plot`` (it does not train:
     :func:`train` does)."""
 
-    def __init__(self, net: Any, setting: Setting | OpenSetting) -> None:
+    def __init__(self, net: Any, setting: Setting) -> None:
         self.net, self.setting = net, setting
         self.num_envs = setting.config.sb3.num_envs
         # the layout of the wrapper's flat observation, which the network was trained on
-        if isinstance(setting, OpenSetting):
-            probe = make_vector(setting, 1, 0)
+        if setting.tables is None:
+            probe = task_vector_of(setting, 1, 0)
             space = probe.observation_space
             self.encoder = Encoder.of_spaces(
                 space[probe.env_key], len(setting.automaton.states),
@@ -150,7 +150,7 @@ class SB3Learner(Learner):
         return SB3Policy(self.net, self.encoder, self.setting)
 
 
-def load_learner(directory: Path, setting: Setting | OpenSetting) -> SB3Learner:
+def load_learner(directory: Path, setting: Setting) -> SB3Learner:
     """The policy of the sb3 run in ``directory`` (its latest checkpoint), rebuilt from the
     settings without its algorithm, optimiser or replay memory."""
     configure_torch()

@@ -16,7 +16,7 @@ import numpy as np
 
 from mitlc.automata.digital import Verdict
 from mitlc.learn.base import Policy
-from mitlc.learn.run import Setting
+from mitlc.learn.setting import Setting
 from mitlc.learn.vec import Step, VecProduct
 from mitlc.product.explicit import SATISFIED, VIOLATED
 from mitlc.worlds.model import BoolArray, IntArray
@@ -70,7 +70,7 @@ class _Recorder:
 
     def record(self, slots: IntArray, states: IntArray, steps: IntArray) -> None:
         """Append the product states ``states`` (at world steps ``steps``) to ``slots``."""
-        tables = self.setting.tables
+        _, _, tables = self.setting.model()
         for slot, state, step in zip(slots.tolist(), states.tolist(), steps.tolist(), strict=True):
             world = int(tables.world_state[state])
             if world >= 0:
@@ -90,7 +90,7 @@ class _Recorder:
 
     def trajectories(self) -> list[Trajectory]:
         """The recorded episodes, by slot."""
-        cells = self.setting.world.cells
+        cells = self.setting.model()[0].cells
         result = []
         for positions, end in zip(self.positions, self.ends, strict=True):
             assert end is not None, "an episode is still running"
@@ -115,7 +115,7 @@ def rollouts(setting: Setting, policy: Policy, episodes: int, seed: int) -> list
     the same trajectories) and record each (see the module docstring)."""
     if episodes <= 0:
         return []
-    env = VecProduct(setting.tables, episodes, np.random.default_rng(seed))
+    env = VecProduct(setting.model()[2], episodes, np.random.default_rng(seed))
     policy.reset(episodes)
     recorder = _Recorder(setting, env)
     while recorder.live.any():

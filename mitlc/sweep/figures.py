@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from mitlc.learn.plot import png_bytes
+from mitlc.learn.plots.common import png_bytes
 from mitlc.sweep.trial import TRIALS
 
 CURVE_REPS = 1000

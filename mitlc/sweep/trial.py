@@ -60,7 +60,9 @@ def run_trial(
     from mitlc.learn import checkpoint
     from mitlc.learn.config import config_for
     from mitlc.learn.evaluate import evaluate
-    from mitlc.learn.run import CONFIG, SUMMARY, train
+    from mitlc.learn.run import train
+    from mitlc.learn.rundir import SUMMARY
+    from mitlc.learn.setting import CONFIG
 
     directory = trial_directory(root, trial)
     done = read_result(directory)

@@ -65,18 +65,23 @@ class EnvTask:
 def is_open_world(path: str | Path) -> bool:
     """Whether the world file at ``path`` is learned through the task wrapper: a continuous
     world, or an env world whose env is not finite (the env is made to tell)."""
-    from mitlc.worlds.load import _mapping, _read_env, is_env_file, is_plane_file
+    from mitlc.worlds.load import kind_of
+
+    kind = kind_of(path)
+    return kind == "plane" or (kind == "env" and not finite_env(path))
+
+
+def finite_env(path: str | Path) -> bool:
+    """Whether the env world file at ``path`` names a finite env: one with a transition table
+    and a start distribution (the env is made to tell)."""
+    from mitlc.worlds.load import _mapping, _read_env
 
     path = Path(path)
     source = _mapping(path)
-    if is_plane_file(source.data):
-        return True
-    if not is_env_file(source.data):
-        return False
     world = _read_env(path, source)
     env = _made(path, source, world.env)
     try:
-        return not (gym_world.is_finite(env) and _has_start(env))
+        return gym_world.is_finite(env) and _has_start(env)
     finally:
         env.close()
 

@@ -22,7 +22,7 @@ import difflib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import yaml
@@ -251,6 +251,14 @@ def read_any_world_file(path: str | Path) -> WorldFile | EnvWorldFile | PlaneWor
     if is_env_file(source.data):
         return _read_env(path, source)
     return _read_grid(path, source)[0]
+
+
+def kind_of(path: str | Path) -> Literal["grid", "env", "plane"]:
+    """The kind of world the file at ``path`` declares: a grid (``grid:``), a gymnasium env
+    (``env:``) or a continuous world (``plane:``); a :class:`WorldError` if it is not a
+    readable mapping."""
+    data = _mapping(Path(path)).data
+    return "plane" if is_plane_file(data) else "env" if is_env_file(data) else "grid"
 
 
 def is_env_world(path: str | Path) -> bool:

@@ -1,25 +1,13 @@
-"""Figures of a training run: ``plot_run(directory) -> [paths]``.
+"""The trajectories of a grid world's run: ``trajectory_figure(setting, trajectories, title)``.
 
-* ``learning_curve.png``: the success rate and the mean return of each ``metrics.jsonl`` window
-  against the episodes (the paper's cumulative-reward figure), with the exploration rate;
-* ``trajectories.png``: the grid (blocked cells black, labelled cells coloured and named, the
-  start starred, walls thick black, doors brown, windows light blue) with a few greedy rollouts
-  of the learned policy drawn through the cell centres (green: success, red: failure);
-* ``automaton.png``: the run's task compiled to its timed LDGBA, drawn by Graphviz
-  (:mod:`mitlc.automata.dot`).
-
-Figures are drawn on :class:`matplotlib.figure.Figure` directly (no pyplot, no display) at a
-fixed size and resolution, without the PNG's software tag, so the same run gives the same bytes;
-each file is written atomically.
+The grid (blocked cells black, labelled cells coloured and named, the start starred, walls thick
+black, doors brown, windows light blue) with a few greedy rollouts of the learned policy drawn
+through the cell centres (green: success, red: failure).
 """
 
 from __future__ import annotations
 
 import itertools
-import textwrap
-from dataclasses import dataclass
-from io import BytesIO
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,110 +15,18 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
-from matplotlib.ticker import FuncFormatter
 
-from mitlc.automata import compile_formula
-from mitlc.automata.dot import render, to_dot
-from mitlc.files import write_atomically
-from mitlc.learn.run import (
-    METRICS,
-    RunError,
-    Setting,
-    is_open_run,
-    load_learner,
-    read_config,
-)
-from mitlc.learn.rundir import METRIC_FIELDS, read_metrics_rows
-from mitlc.learn.trajectories import Trajectory, rollouts
-from mitlc.syntax import parse
+from mitlc.learn.plots.common import DPI, PlotError
+from mitlc.learn.setting import Setting
+from mitlc.learn.trajectories import Trajectory
 from mitlc.worlds import read_world_file
 from mitlc.worlds.grid import Layout, check
-from mitlc.worlds.load import is_env_world
-from mitlc.worlds.model import FloatArray
 
-LEARNING_CURVE, TRAJECTORIES, AUTOMATON = "learning_curve.png", "trajectories.png", "automaton.png"
-DPI = 100
-CURVE_SIZE = (8.0, 6.0)
-"""Inches; at :data:`DPI`, an 800x600 PNG."""
 GRID_SIZE = (9.5, 6.5)
 """Inches; at :data:`DPI`, a 950x650 PNG."""
 WALL, DOOR, WINDOW = "black", "#8b5a2b", "#8ecae6"
 SUCCESS, FAILURE = "Greens", "Reds"
 
-
-class PlotError(RunError):
-    """A run that cannot be drawn: no metrics yet, or a world file that no longer fits it."""
-
-
-@dataclass(frozen=True, slots=True)
-class Metrics:
-    """The columns of ``metrics.jsonl``, one entry per logged window."""
-
-    episodes: FloatArray
-    success_rate: FloatArray
-    mean_return: FloatArray
-    epsilon: FloatArray
-
-
-def read_metrics(directory: Path) -> Metrics:
-    """The run's metrics; a last line cut short (a killed run) is left out. :class:`PlotError`
-    when the file is missing or has no complete line, :class:`RunError` when a line is bad."""
-    path = directory / METRICS
-    if not path.is_file():
-        raise PlotError(f"{directory}: no {METRICS} (not a run directory, or not started)")
-    rows = [[row[name] for name in METRIC_FIELDS] for row in read_metrics_rows(path)]
-    if not rows:
-        raise PlotError(f"{path}: no metrics yet (the run has not logged a window)")
-    columns = np.asarray(rows, dtype=np.float64).T
-    return Metrics(columns[0], columns[1], columns[2], columns[3])
-
-
-def png_bytes(figure: Figure) -> bytes:
-    """``figure`` as PNG bytes (fixed dpi, no software tag)."""
-    buffer = BytesIO()
-    figure.savefig(buffer, format="png", dpi=DPI, metadata={"Software": None})
-    return buffer.getvalue()
-
-
-# --- the learning curve ------------------------------------------------------------------------
-
-
-def learning_curve(metrics: Metrics, title: str) -> Figure:
-    """Success rate (with epsilon) above, mean return below, against the episodes."""
-    figure = Figure(figsize=CURVE_SIZE, dpi=DPI, layout="constrained")
-    top, bottom = figure.subplots(2, 1, sharex=True)
-    marker = "o" if len(metrics.episodes) <= 60 else None
-    top.plot(
-        metrics.episodes,
-        metrics.success_rate,
-        color="tab:green",
-        marker=marker,
-        markersize=3,
-        label="success rate",
-    )
-    top.plot(
-        metrics.episodes, metrics.epsilon, color="0.55", linestyle="--", label="ε (exploration)"
-    )
-    top.set_ylim(-0.02, 1.02)
-    top.set_ylabel("success rate")
-    top.legend(loc="lower right", frameon=False)
-    bottom.plot(
-        metrics.episodes, metrics.mean_return, color="tab:blue", marker=marker, markersize=3
-    )
-    bottom.set_ylabel("mean return per episode")
-    bottom.set_xlabel("episodes")
-    bottom.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:,.0f}"))
-    for axes in (top, bottom):
-        axes.grid(True, color="0.9")
-        axes.spines[["top", "right"]].set_visible(False)
-    last = (
-        f"last window: success {metrics.success_rate[-1]:.3f}, return {metrics.mean_return[-1]:.1f}"
-    )
-    figure.suptitle(f"{title}\n{last}", fontsize=12)
-    return figure
-
-
-# --- the grid and its trajectories ---------------------------------------------------------------
 
 _SEGMENTS = {
     "N": ((0, 0), (1, 0)),
@@ -354,7 +250,7 @@ def trajectory_figure(setting: Setting, trajectories: list[Trajectory], title: s
     """The world's grid with ``trajectories`` drawn over it."""
     world_file = read_world_file(setting.world_path)
     layout, _ = check(world_file)
-    if layout.cells() != setting.world.cells:
+    if layout.cells() != setting.model()[0].cells:
         raise PlotError(f"{setting.world_path}: the world file changed since the run")
     figure = Figure(figsize=GRID_SIZE, dpi=DPI)
     axes = figure.add_axes((0.03, 0.04, 0.6, 0.8))
@@ -377,38 +273,3 @@ def trajectory_figure(setting: Setting, trajectories: list[Trajectory], title: s
 
 
 # --- the run -----------------------------------------------------------------------------------
-
-
-def plot_run(
-    directory: Path, out: Path | None = None, *, trajectories: int = 5, seed: int = 0
-) -> list[Path]:
-    """Draw the run in ``directory`` (see the module docstring) into ``out`` (default: the run
-    directory); ``trajectories`` greedy rollouts with ``seed``. The paths written, in order."""
-    directory = Path(directory)
-    out = directory if out is None else Path(out)
-    data, config = read_config(directory)
-    metrics = read_metrics(directory)
-    if is_open_run(directory):  # a continuous world: drawn in its room
-        from mitlc.learn.plot_plane import plot_plane_run
-
-        return plot_plane_run(directory, out, data, metrics, trajectories, seed)
-    setting, learner = load_learner(directory)
-    name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
-    curve = out / LEARNING_CURVE
-    write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {config.algo}")))
-    drawn = rollouts(setting, learner.policy(), trajectories, seed)
-    formula = textwrap.fill(setting.automaton.formula, 110)
-    wins = sum(t.success for t in drawn)
-    title = (
-        f"{name} — {config.algo}: {wins} of {len(drawn)} greedy rollouts succeed "
-        f"(seed {seed})\n{formula}"
-    )
-    written = [curve]
-    if not is_env_world(setting.world_path):  # a gymnasium env has no grid file to draw
-        grid = out / TRAJECTORIES
-        write_atomically(grid, png_bytes(trajectory_figure(setting, drawn, title)))
-        written.append(grid)
-    automaton = out / AUTOMATON
-    timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
-    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
-    return [*written, automaton]

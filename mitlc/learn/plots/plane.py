@@ -6,13 +6,11 @@ coordinates): obstacles black, each labelled region coloured and named, the star
 start region outlined in gold), and each trajectory, a list of positions ``(x, y)``, as a line
 through them with a dot at each position, a circle at its first and a square at its last.
 Drawn on :class:`matplotlib.figure.Figure` directly (no pyplot, no display), like
-:mod:`mitlc.learn.plot`.
+:mod:`mitlc.learn.plots.grid`.
 """
 
 from __future__ import annotations
 
-import textwrap
-from pathlib import Path
 from typing import Any
 
 from matplotlib.axes import Axes
@@ -139,49 +137,3 @@ def plane_figure(
     _legend(axes, world, trajectories)
     figure.suptitle(title, fontsize=12, x=0.03, ha="left")
     return figure
-
-
-__all__ = ["plane_figure"]
-
-
-def plot_plane_run(
-    directory: Path,
-    out: Path,
-    data: dict[str, Any],
-    metrics: Any,
-    trajectories: int,
-    seed: int,
-) -> list[Path]:
-    """The run of a world that is not finite: the learning curve, for a continuous world
-    greedy trajectories in the room (:func:`mitlc.learn.plot_plane.plane_figure`), and the
-    timed automaton. A gymnasium env has no room to draw its trajectories in."""
-    from mitlc.automata import compile_formula
-    from mitlc.automata.dot import render, to_dot
-    from mitlc.files import write_atomically
-    from mitlc.learn.plane_run import rollouts_plane
-    from mitlc.learn.plot import AUTOMATON, LEARNING_CURVE, TRAJECTORIES, learning_curve, png_bytes
-    from mitlc.learn.run import load_open_learner
-    from mitlc.syntax import parse
-
-    setting, learner = load_open_learner(directory)
-    name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
-    curve = out / LEARNING_CURVE
-    algo = setting.config.algo
-    write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {algo}")))
-    written = [curve]
-    if isinstance(setting.world, PlaneWorld):
-        drawn = rollouts_plane(setting, learner.policy(), trajectories, seed)
-        wins = sum(success for _, success in drawn)
-        formula = textwrap.fill(setting.automaton.formula, 110)
-        title = (
-            f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n"
-            f"{formula}"
-        )
-        room = out / TRAJECTORIES
-        figure = plane_figure(setting.world, [path for path, _ in drawn], title)
-        write_atomically(room, png_bytes(figure))
-        written.append(room)
-    automaton = out / AUTOMATON
-    timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
-    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
-    return [*written, automaton]

@@ -1,0 +1,107 @@
+"""Figures of a training run, of any world: ``plot_run(directory) -> [paths]``.
+
+* ``learning_curve.png``: the success rate and the mean return of each ``metrics.jsonl`` window
+  against the episodes (the paper's cumulative-reward figure), with the exploration rate
+  (:mod:`mitlc.learn.plots.common`);
+* ``trajectories.png``: a few greedy rollouts of the learned policy where the world has a map to
+  draw them on: a grid world's cells (:mod:`mitlc.learn.plots.grid`), a continuous world's
+  room (:mod:`mitlc.learn.plots.plane`); a gymnasium env has none;
+* ``automaton.png``: the run's task compiled to its timed LDGBA, drawn by Graphviz
+  (:mod:`mitlc.automata.dot`).
+
+One route for every world: the run's setting is loaded once and asked what its world is. Each
+file is written atomically.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+from mitlc.automata import compile_formula
+from mitlc.automata.dot import render, to_dot
+from mitlc.files import write_atomically
+from mitlc.learn.base import Policy
+from mitlc.learn.plots.common import (
+    AUTOMATON,
+    CURVE_SIZE,
+    DPI,
+    LEARNING_CURVE,
+    TRAJECTORIES,
+    PlotError,
+    learning_curve,
+    png_bytes,
+    read_metrics,
+)
+from mitlc.learn.plots.grid import GRID_SIZE, trajectory_figure
+from mitlc.learn.plots.plane import plane_figure
+from mitlc.learn.run import load_learner
+from mitlc.learn.setting import Setting, read_config
+from mitlc.learn.trajectories import rollouts
+from mitlc.syntax import parse
+from mitlc.worlds.load import kind_of
+from mitlc.worlds.plane import PlaneWorld
+
+__all__ = [
+    "AUTOMATON",
+    "CURVE_SIZE",
+    "DPI",
+    "GRID_SIZE",
+    "LEARNING_CURVE",
+    "TRAJECTORIES",
+    "PlotError",
+    "plot_run",
+    "read_metrics",
+]
+
+
+def plot_run(
+    directory: Path, out: Path | None = None, *, trajectories: int = 5, seed: int = 0
+) -> list[Path]:
+    """Draw the run in ``directory`` (see the module docstring) into ``out`` (default: the run
+    directory); ``trajectories`` greedy rollouts with ``seed``. The paths written, in order."""
+    directory = Path(directory)
+    out = directory if out is None else Path(out)
+    data, config = read_config(directory)
+    metrics = read_metrics(directory)
+    setting, learner = load_learner(directory)
+    name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
+    curve = out / LEARNING_CURVE
+    write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {config.algo}")))
+    written = [curve]
+    drawn = _trajectories(setting, learner.policy(), name, trajectories, seed)
+    if drawn is not None:
+        write_atomically(out / TRAJECTORIES, drawn)
+        written.append(out / TRAJECTORIES)
+    automaton = out / AUTOMATON
+    timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
+    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
+    return [*written, automaton]
+
+
+def _trajectories(
+    setting: Setting, policy: Policy, name: str, count: int, seed: int
+) -> bytes | None:
+    """The PNG of ``count`` greedy rollouts on the world's map, or ``None`` where it has none
+    (a gymnasium env, finite or not)."""
+    formula = textwrap.fill(setting.automaton.formula, 110)
+    algo = setting.config.algo
+    world = setting.world
+    if isinstance(world, PlaneWorld):
+        from mitlc.learn.plane_run import rollouts_plane
+
+        paths = rollouts_plane(setting, policy, count, seed)
+        wins = sum(success for _, success in paths)
+        title = (
+            f"{name} — {algo}: {wins} of {len(paths)} greedy rollouts succeed (seed {seed})\n"
+            f"{formula}"
+        )
+        return png_bytes(plane_figure(world, [path for path, _ in paths], title))
+    if not setting.finite or kind_of(setting.world_path) != "grid":  # no grid file to draw
+        return None
+    drawn = rollouts(setting, policy, count, seed)
+    wins = sum(t.success for t in drawn)
+    title = (
+        f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n{formula}"
+    )
+    return png_bytes(trajectory_figure(setting, drawn, title))

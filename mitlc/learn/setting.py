@@ -1,0 +1,180 @@
+"""A run's setting, for every kind of world: ``prepare(world_path, config) -> Setting``.
+
+One route for every world: :func:`prepare` loads the world the file declares once
+(:func:`mitlc.product.worlds.open_world`), compiles its task and, where the world is finite,
+builds its product and the simulator's tables. Everything after asks the setting what it
+offers, never the file again: :attr:`Setting.finite`; the world's gymnasium envs under the
+task wrapper (:func:`task_vector_of`, any world); the batches of the Monte-Carlo estimate
+(:func:`batches`: the product's simulator where the world is finite, else its wrapped envs).
+``config.json`` (the world file's path, the task, the settings) is written and read here.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mitlc import __version__
+from mitlc.automata import DigitalAutomaton, translate
+from mitlc.errors import MitlcError
+from mitlc.files import write_atomically
+from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
+from mitlc.learn.envvec import VectorTask, task_vector
+from mitlc.learn.montecarlo import Batches
+from mitlc.learn.rundir import RunError, read_json
+from mitlc.learn.state import one_line
+from mitlc.learn.vec import Tables, VecProduct, tables
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.product.explicit import Product, build_product
+from mitlc.product.worlds import AnyWorld, is_finite, open_world, task_env
+from mitlc.syntax import parse
+from mitlc.task.horizon import short_horizon_note
+from mitlc.worlds.model import World
+
+CONFIG = "config.json"
+
+
+@dataclass(frozen=True, slots=True)
+class Setting:
+    """A run's world, task and settings; for a finite world its product and the tables of
+    the product's simulator too."""
+
+    world_path: Path
+    world: AnyWorld
+    automaton: DigitalAutomaton
+    config: TrainConfig
+    product: Product | None = None
+    tables: Tables | None = None
+
+    @property
+    def finite(self) -> bool:
+        """Whether the world is finite (its product is here)."""
+        return self.product is not None
+
+    def model(self) -> tuple[World, Product, Tables]:
+        """The finite world, its product and the simulator's tables (a :class:`RunError` for
+        a world that is not finite)."""
+        world = self.world
+        if not is_finite(world) or self.product is None or self.tables is None:
+            raise RunError(f"{self.world_path}: not a finite world (no product to read)")
+        return world, self.product, self.tables
+
+
+def prepare(
+    world_path: str | Path,
+    config: TrainConfig,
+    spec: str | None = None,
+    *,
+    deadline: Deadline | None = None,
+) -> Setting:
+    """Load the world, compile its task (``spec`` in its place if given) and, for a finite
+    world, build the product; the compile and the product stop at ``deadline`` (by default
+    :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds)."""
+    clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "setting up the run")
+    world_path = Path(world_path)
+    world = open_world(world_path)
+    if spec is not None and spec != world.spec:
+        world = open_world(world_path, spec)
+    automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
+    if not is_finite(world):
+        return Setting(world_path, world, automaton, config)
+    product = build_product(world, automaton, deadline=clock.at("the product"))
+    return Setting(world_path, world, automaton, config, product, tables(product, world))
+
+
+def setting_notes(setting: Setting) -> list[str]:
+    """One-line notes on a run's setting: a horizon shorter than the task needs to be decided
+    (:func:`mitlc.task.horizon.short_horizon_note`)."""
+    world = setting.world
+    note = short_horizon_note(parse(world.spec, world.spec_source), world.horizon)
+    return [] if note is None else [note]
+
+
+def task_vector_of(setting: Setting, num_envs: int, seed: int, *, flatten: bool = False) -> Any:
+    """``num_envs`` fresh envs of the world under the task wrapper, as a
+    :class:`~mitlc.learn.envvec.VectorTask` whose first env is reset with ``seed``."""
+    envs = [task_env(setting.world, setting.automaton, flatten=flatten) for _ in range(num_envs)]
+    vector: VectorTask = task_vector(envs, seed=seed)
+    return vector
+
+
+def batches(setting: Setting, seed: int) -> Batches:
+    """The batches of :func:`mitlc.learn.montecarlo.monte_carlo` for the run's world: the
+    product's simulator where it is finite (the batch of episodes ``first ..`` draws from
+    ``default_rng((seed, first))``), else the world's wrapped envs (episode ``j`` starts from
+    a reset with ``base + j``, ``base`` a 63-bit number drawn from ``seed``, so that the
+    estimates of nearby seeds share no episodes)."""
+    if setting.tables is not None:
+        table = setting.tables
+
+        def product_batch(count: int, first: int) -> VecProduct:
+            return VecProduct(table, count, np.random.default_rng((seed, first)))
+
+        return product_batch
+    base = int(np.random.SeedSequence(seed).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+    def open_batch(count: int, first: int) -> VectorTask:
+        vector: VectorTask = task_vector_of(setting, count, base + first)
+        return vector
+
+    return open_batch
+
+
+# -- config.json -----------------------------------------------------------------------------------
+
+
+def read_config(directory: Path) -> tuple[dict[str, Any], TrainConfig]:
+    """``config.json`` of a run: its raw data (``world`` and ``spec`` checked to be text) and
+    the settings."""
+    path = directory / CONFIG
+    if not path.is_file():
+        raise RunError(f"{directory}: not a run directory (no {CONFIG})")
+    data = read_json(path)
+    if not isinstance(data, dict):
+        raise RunError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    for key in ("world", "spec"):
+        value = data.get(key)
+        if not isinstance(value, str) or not value or "\x00" in value:
+            raise RunError(f"{path}: {key!r} is missing or not a usable string")
+    if not isinstance(data.get("train"), dict):
+        raise RunError(f"{path}: 'train' is missing or not a JSON object")
+    try:
+        return data, from_data(data["train"])
+    except ConfigError as err:
+        raise RunError(f"{path}: train.{err}") from None
+
+
+def save_config(directory: Path, setting: Setting) -> None:
+    """Write the run's ``config.json``."""
+    data = {
+        "mitlc": __version__,
+        "world": str(setting.world_path.resolve()),
+        "world_name": setting.world.name,
+        "spec": setting.world.spec,
+        "train": to_data(setting.config),
+    }
+    write_atomically(
+        directory / CONFIG, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode()
+    )
+
+
+def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Setting:
+    """The setting of the run in ``directory`` (built by ``deadline``, see :func:`prepare`);
+    a :class:`RunError` naming ``config.json`` when its world or task no longer loads."""
+    data, config = read_config(directory)
+    if not Path(data["world"]).is_file():  # a device would be read for ever
+        raise RunError(f"{directory / CONFIG}: the run's world {data['world']} is not a file")
+    try:
+        return prepare(Path(data["world"]), config, data["spec"], deadline=deadline)
+    except OSError as err:
+        raise RunError(
+            f"{directory / CONFIG}: the run's world {data['world']}: {err.strerror or err}"
+        ) from None
+    except LimitError:  # the time or size limit, not a fault of the run's files
+        raise
+    except MitlcError as err:  # the world file or the task no longer compiles
+        raise RunError(f"{directory / CONFIG}: the run's world or task: {one_line(err)}") from None
