@@ -20,7 +20,7 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.automata import translate  # noqa: E402
 from mitlc.check import check  # noqa: E402
-from mitlc.learn.evaluate import wilson  # noqa: E402
+from mitlc.learn.evaluation.evaluate import wilson  # noqa: E402
 from mitlc.syntax import parse  # noqa: E402
 from mitlc.worlds import load_world  # noqa: E402
 from mitlc.worlds.plane_env import make_plane_env  # noqa: E402

@@ -2,7 +2,8 @@
 greedy policy reaches 0.98 x the optimum, with and without it, side by side in one run.
 
 Every ``--every`` episodes the greedy policy's exact success probability is computed on the
-product (:func:`mitlc.learn.exact.policy_success`) and compared with the optimum of the same
+product (:func:`mitlc.learn.evaluation.exact.policy_success`) and compared with the optimum of the
+same
 event (``pmax_horizon``). Each world trains with its file's settings and seed, the schedules
 stretched over ``--episodes``; the same seeds with CRM off and on.
 
@@ -23,10 +24,10 @@ sys.path.insert(0, str(ROOT))
 
 from mitlc.check.solve import pmax_horizon  # noqa: E402
 from mitlc.learn.config import resolve  # noqa: E402
-from mitlc.learn.exact import policy_success  # noqa: E402
-from mitlc.learn.qlearning import QLearner  # noqa: E402
+from mitlc.learn.envs.vec import VecProduct  # noqa: E402
+from mitlc.learn.evaluation.exact import policy_success  # noqa: E402
+from mitlc.learn.learners.qlearning import QLearner  # noqa: E402
 from mitlc.learn.run import Setting, make_learner, prepare  # noqa: E402
-from mitlc.learn.vec import VecProduct  # noqa: E402
 from mitlc.worlds.load import read_any_world_file  # noqa: E402
 
 WORLDS = ("specs/paper/case1.yaml", "specs/gym/taxi.yaml", "specs/gym/frozenlake4x4.yaml")

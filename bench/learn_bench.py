@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.learn.config import resolve
-from mitlc.learn.evaluate import evaluate
+from mitlc.learn.evaluation.evaluate import evaluate
 from mitlc.learn.run import train
 from mitlc.worlds import read_world_file
 

@@ -1,4 +1,4 @@
-"""Tabular environment steps per second: the vectorised product simulator (mitlc.learn.vec)
+"""Tabular environment steps per second: the vectorised product simulator (mitlc.learn.envs.vec)
 beside a plain gymnasium step loop over the same product (mitlc.product.env.ProductEnv), in
 one run on this machine.
 
@@ -19,13 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mitlc.learn.base import random_valid
 from mitlc.learn.config import resolve
-from mitlc.learn.envvec import VectorTask
-from mitlc.learn.qlearning import QLearner
+from mitlc.learn.envs.envvec import VectorTask
+from mitlc.learn.envs.vec import VecProduct
+from mitlc.learn.envs.vector import ProductVectorEnv
+from mitlc.learn.learners.base import random_valid
+from mitlc.learn.learners.qlearning import QLearner
 from mitlc.learn.run import prepare
-from mitlc.learn.vec import VecProduct
-from mitlc.learn.vector import ProductVectorEnv
 from mitlc.product.env import ProductEnv
 
 WORLD = "specs/paper/case1.yaml"

@@ -98,8 +98,10 @@ def main() -> None:
 
     cores = os.cpu_count() or 1
     limit = ceiling(cores)
-    print(f"this machine: {cores} plain CPU-bound processes at once run {limit:.2f}x as fast as "
-          "one after another (median of 5 tries; the ceiling of any parallel speed-up here)\n")
+    print(
+        f"this machine: {cores} plain CPU-bound processes at once run {limit:.2f}x as fast as "
+        "one after another (median of 5 tries; the ceiling of any parallel speed-up here)\n"
+    )
     if args.ceiling_only:
         return
     with tempfile.TemporaryDirectory() as scratch:
@@ -139,8 +141,10 @@ def main() -> None:
         print(f"{name:<48} {seconds:>8.1f} {base_seconds / seconds:>8.2f}x {same!s:>13}")
     q = [r["score"] for r in sequential.values() if r["algo"] == "q"]
     d = [r["score"] for r in sequential.values() if r["algo"] == "drqn"]
-    print(f"\nmean score: case 1 tabular {sum(q) / len(q):.4f} (success / optimum), "
-          f"case 3 recurrent DQN {sum(d) / len(d):.4f} (success / fully observable bound)")
+    print(
+        f"\nmean score: case 1 tabular {sum(q) / len(q):.4f} (success / optimum), "
+        f"case 3 recurrent DQN {sum(d) / len(d):.4f} (success / fully observable bound)"
+    )
     print(json.dumps({"cores": cores}))
 
 

@@ -43,9 +43,7 @@ MAKERS: dict[str, Callable[[], gym.Env[Any, Any]]] = {
     "bare FrozenLake-v1": bare,
     "a do-nothing wrapper": lambda: _Nothing(bare()),
     "TaskWrapper": lambda: TaskWrapper(bare(), SPEC, LABELS, horizon=100),
-    "TaskWrapper, flattened": lambda: TaskWrapper(
-        bare(), SPEC, LABELS, horizon=100, flatten=True
-    ),
+    "TaskWrapper, flattened": lambda: TaskWrapper(bare(), SPEC, LABELS, horizon=100, flatten=True),
 }
 
 

@@ -28,7 +28,7 @@ RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mi
 def _overrides(
     pairs: list[str], algo: str | None, seed: int | None, episodes: int | None
 ) -> dict[str, Any]:
-    from mitlc.learn.rundir import RunError
+    from mitlc.learn.rundir.files import RunError
 
     values: dict[str, Any] = {}
     for pair in pairs:
@@ -140,7 +140,7 @@ def train_command(
     """Learn a policy for a world's task; report it beside the exact optimum."""
     from mitlc.learn.config import config_for
     from mitlc.learn.run import train
-    from mitlc.learn.rundir import RunError
+    from mitlc.learn.rundir.files import RunError
     from mitlc.learn.setting import CONFIG, read_config
 
     if resume and out is not None and (out / CONFIG).is_file():
@@ -229,7 +229,7 @@ def _print_evaluation(
     bounds: bool,
     deadline: Deadline | None = None,
 ) -> None:
-    from mitlc.learn.evaluate import evaluate
+    from mitlc.learn.evaluation.evaluate import evaluate
 
     report = evaluate(
         directory, episodes=episodes, seed=seed, pomdp_bounds=bounds, deadline=deadline
@@ -294,7 +294,7 @@ def eval_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
-    from mitlc.learn.rundir import RunError
+    from mitlc.learn.rundir.files import RunError
 
     if episodes is not None and episodes <= 0:
         raise RunError("--episodes must be positive")

@@ -1,4 +1,4 @@
-"""Checkpoints hold data only (:mod:`mitlc.learn.checkpoint`): exact round trips for every
+"""Checkpoints hold data only (:mod:`mitlc.learn.rundir.checkpoint`): exact round trips for every
 learner, files named by steps and pruned, crafted pickles under every file name of a run
 directory that never run, damaged files of every kind reported in one line naming the file,
 and the run directory's lock."""
@@ -26,23 +26,23 @@ from typer.testing import CliRunner
 
 from mitlc.cli import app
 from mitlc.errors import MitlcError
-from mitlc.learn import checkpoint
 from mitlc.learn.config import ConfigError, DQNConfig, TrainConfig, resolve
-from mitlc.learn.evaluate import evaluate
-from mitlc.learn.plot import plot_run, read_metrics
+from mitlc.learn.envs.vec import VecProduct
+from mitlc.learn.evaluation.evaluate import evaluate
+from mitlc.learn.plots import plot_run, read_metrics
 from mitlc.learn.run import (
     ROWS,
     UNCHECKED,
     RunError,
-    _Tally,
+    Tally,
     load_learner,
     make_learner,
     prepare,
     train,
 )
-from mitlc.learn.rundir import locked
-from mitlc.learn.state import restore
-from mitlc.learn.vec import VecProduct
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.files import locked
+from mitlc.learn.rundir.state import restore
 from tests.conftest import ROOT, TINY_DRQN
 
 CASE1 = ROOT / "specs" / "paper" / "case1.yaml"
@@ -124,7 +124,7 @@ def test_saved_state_continues_exactly(algo: str, tmp_path: Path) -> None:
     setting = prepare(WORLDS[algo], settings(algo, 100))
     learner = make_learner(setting, np.random.default_rng(1))
     env = VecProduct(setting.tables, learner.num_envs, np.random.default_rng(2))
-    tally = _Tally()
+    tally = Tally()
     for _ in range(60):
         learner.train_step(env, 0.3)
     tally.steps = 60 * env.num_envs
@@ -132,7 +132,7 @@ def test_saved_state_continues_exactly(algo: str, tmp_path: Path) -> None:
     checkpoint.save(tmp_path, tally.steps, state)
     twin = make_learner(setting, np.random.default_rng(99))
     twin_env = VecProduct(setting.tables, twin.num_envs, np.random.default_rng(98))
-    parts = {"learner": twin, "env": twin_env, "tally": _Tally()}
+    parts = {"learner": twin, "env": twin_env, "tally": Tally()}
     restore(tmp_path, parts, rows=ROWS, unchecked=UNCHECKED)  # type: ignore[arg-type]
     for _ in range(40):
         a, b = learner.train_step(env, 0.5), twin.train_step(twin_env, 0.5)
@@ -370,7 +370,7 @@ def test_cli_reports_a_damaged_run_in_one_line(runs: dict[str, Path], tmp_path: 
 # -- the lock --------------------------------------------------------------------------------
 
 HOLD = (
-    "import sys, time; from pathlib import Path; from mitlc.learn.rundir import locked\n"
+    "import sys, time; from pathlib import Path; from mitlc.learn.rundir.files import locked\n"
     "with locked(Path(sys.argv[1])):\n    print('held', flush=True); time.sleep(120)\n"
 )
 

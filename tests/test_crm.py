@@ -16,9 +16,9 @@ import pytest
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState
 from mitlc.learn.config import resolve
-from mitlc.learn.crm import Counterfactuals
-from mitlc.learn.qlearning import QLearner
-from mitlc.learn.vec import VecProduct, tables
+from mitlc.learn.envs.vec import VecProduct, tables
+from mitlc.learn.learners.crm import Counterfactuals
+from mitlc.learn.learners.qlearning import QLearner
 from mitlc.product.explicit import build_product
 from mitlc.worlds.model import Rewards, Sparse, World
 from tests.conftest import ROOT
@@ -84,8 +84,15 @@ def test_counterfactuals_of_one_world_step_by_hand() -> None:
     got = {
         (int(x), int(m), int(a), float(r), bool(acc), bool(t), int(m2), int(y))
         for x, m, a, r, acc, t, m2, y in zip(
-            batch.state, batch.mask, batch.action, batch.reward, batch.accepting,
-            batch.terminated, batch.next_mask, batch.next_state, strict=True,
+            batch.state,
+            batch.mask,
+            batch.action,
+            batch.reward,
+            batch.accepting,
+            batch.terminated,
+            batch.next_mask,
+            batch.next_state,
+            strict=True,
         )
     }
     assert got == {
@@ -134,7 +141,7 @@ def test_one_crm_update_by_hand() -> None:
 def test_q_learning_with_and_without_crm_reaches_case1(crm: bool, tmp_path: Path) -> None:
     """Both reach 0.98 of the optimum on case 1 (CRM in fewer episodes: bench/crm_bench.py)."""
     from mitlc.check.solve import pmax_horizon
-    from mitlc.learn.exact import policy_success
+    from mitlc.learn.evaluation.exact import policy_success
     from mitlc.learn.run import make_learner, prepare
     from mitlc.worlds.load import read_any_world_file
 

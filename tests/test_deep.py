@@ -1,4 +1,5 @@
-"""The deep learners (:mod:`mitlc.learn.dqn`, :mod:`mitlc.learn.drqn`): smoke runs with tiny
+"""The deep learners (:mod:`mitlc.learn.learners.dqn`, :mod:`mitlc.learn.learners.drqn`): smoke
+runs with tiny
 budgets, exact resume, checkpoint round trips, masking of invalid actions, and the replay's
 sequences."""
 
@@ -15,16 +16,16 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from mitlc.learn import checkpoint  # noqa: E402
-from mitlc.learn.base import Learner, Policy  # noqa: E402
 from mitlc.learn.config import DQNConfig, TrainConfig  # noqa: E402
-from mitlc.learn.dqn import DQNLearner, DQNPolicy  # noqa: E402
-from mitlc.learn.drqn import DRQNLearner  # noqa: E402
-from mitlc.learn.evaluate import evaluate  # noqa: E402
-from mitlc.learn.exact import policy_success  # noqa: E402
-from mitlc.learn.nets import Encoder  # noqa: E402
+from mitlc.learn.envs.vec import Tables, VecProduct  # noqa: E402
+from mitlc.learn.evaluation.evaluate import evaluate  # noqa: E402
+from mitlc.learn.evaluation.exact import policy_success  # noqa: E402
+from mitlc.learn.learners.base import Learner, Policy  # noqa: E402
+from mitlc.learn.learners.dqn import DQNLearner, DQNPolicy  # noqa: E402
+from mitlc.learn.learners.drqn import DRQNLearner  # noqa: E402
+from mitlc.learn.learners.nets import Encoder  # noqa: E402
 from mitlc.learn.run import RunError, Setting, load_learner, make_learner, prepare, train  # noqa: E402
-from mitlc.learn.vec import Tables, VecProduct  # noqa: E402
+from mitlc.learn.rundir import checkpoint  # noqa: E402
 from tests.conftest import TINY_DRQN  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 import tests.open_envs  # noqa: F401 - registers MitlcTest/Chain-v0 and MitlcTest/DictChain-v0
 from mitlc.cli import app
 from mitlc.learn.config import resolve
-from mitlc.learn.evaluate import evaluate
+from mitlc.learn.evaluation.evaluate import evaluate
 from mitlc.learn.run import train
 from mitlc.worlds import WorldError
 from mitlc.worlds.env_task import is_open_world, load_env_task

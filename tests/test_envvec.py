@@ -11,9 +11,9 @@ import pytest
 
 from mitlc.gym import TaskWrapper
 from mitlc.learn.config import resolve
-from mitlc.learn.dqn import DQNLearner
-from mitlc.learn.envvec import VectorTask, task_vector
-from mitlc.learn.nets import Encoder
+from mitlc.learn.envs.envvec import VectorTask, task_vector
+from mitlc.learn.learners.dqn import DQNLearner
+from mitlc.learn.learners.nets import Encoder
 from mitlc.worlds.load import load_plane_world
 from mitlc.worlds.plane_env import make_plane_env
 
@@ -123,8 +123,8 @@ def test_a_continuous_world_trains_evaluates_plots_and_resumes_exactly(tmp_path:
     ends exactly where an uninterrupted run does (the same metrics, the same evaluation);
     ``eval`` says there is no exact optimum; ``plot`` draws the room."""
     from mitlc.learn.config import resolve as resolve_config
-    from mitlc.learn.evaluate import evaluate
-    from mitlc.learn.plot import plot_run
+    from mitlc.learn.evaluation.evaluate import evaluate
+    from mitlc.learn.plots import plot_run
     from mitlc.learn.run import train as train_run
 
     path = tmp_path / "corridor.yaml"
@@ -180,7 +180,7 @@ def test_the_recurrent_dqn_learns_a_continuous_world_with_a_noisy_sensor(tmp_pat
 def test_tabular_q_learns_any_env_with_a_discrete_observation() -> None:
     """Tabular Q-learning over (frontier, observation, automaton state) on wrapped toy-text
     envs (the 3x3 lake with a deadline)."""
-    from mitlc.learn.qlearning_env import ObservedQLearner
+    from mitlc.learn.learners.qlearning_env import ObservedQLearner
 
     desc = ["SHF", "FFH", "FFG"]
     labels = {"goal": {"obs": [8]}, "hole": {"obs": [1, 5]}}
@@ -220,7 +220,7 @@ def test_shaping_reads_the_automaton_state_without_a_product(tmp_path: Path) -> 
     """Without product states the shaping potential is the automaton state's (0 at an
     episode's end), and on a finite product it is the same potential, state by state."""
     from mitlc.automata import translate
-    from mitlc.learn.base import automaton_potential, learning_signal, potential
+    from mitlc.learn.learners.base import automaton_potential, learning_signal, potential
     from mitlc.learn.run import prepare
     from mitlc.syntax import parse
     from tests.conftest import ROOT
@@ -253,7 +253,7 @@ def test_the_learners_read_an_async_vector_env_as_a_sync_one() -> None:
     steps as over ``SyncVectorEnv`` for the same seeds and actions."""
     from gymnasium.vector import AutoresetMode
 
-    from mitlc.learn.envvec import VectorTask
+    from mitlc.learn.envs.envvec import VectorTask
 
     def make() -> TaskWrapper:
         return TaskWrapper(gym.make("FrozenLake-v1", is_slippery=True), "!hole U[0,20] goal",

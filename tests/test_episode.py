@@ -26,8 +26,8 @@ from gymnasium import spaces
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.check.solve import pmax_horizon
 from mitlc.gym import EpisodeCutWarning, TaskWrapper
-from mitlc.learn.exact import policy_success
-from mitlc.learn.vec import VecProduct, tables
+from mitlc.learn.envs.vec import VecProduct, tables
+from mitlc.learn.evaluation.exact import policy_success
 from mitlc.product import build_product
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.semantics import evaluate_finite

@@ -306,7 +306,7 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     ),
     "bad label": (
         {"labels": {"goal": {"cells": [[3, 3]]}, "hole": {"obs": [5]}}},
-        'labels.goal: expected {obs: [...]}, {decoded: {...}}, {box: {...}}, {disc: {...}}, '
+        "labels.goal: expected {obs: [...]}, {decoded: {...}}, {box: {...}}, {disc: {...}}, "
         '{info: key} or a list of them, got {"cells": [[3, 3]]}',
     ),
     "obs out of range": (

@@ -13,15 +13,15 @@ import pytest
 
 from mitlc.automata import translate
 from mitlc.check.solve import pmax_horizon
-from mitlc.learn.base import automaton_distance, potential, step_discounts
 from mitlc.learn.config import ConfigError, Discount, resolve
-from mitlc.learn.evaluate import evaluate
-from mitlc.learn.setting import batches
-from mitlc.learn.exact import policy_success
-from mitlc.learn.montecarlo import monte_carlo, wilson
-from mitlc.learn.qlearning import QLearner, TabularPolicy
+from mitlc.learn.envs.vec import Step, VecProduct, tables
+from mitlc.learn.evaluation.evaluate import evaluate
+from mitlc.learn.evaluation.exact import policy_success
+from mitlc.learn.evaluation.montecarlo import monte_carlo, wilson
+from mitlc.learn.learners.base import automaton_distance, potential, step_discounts
+from mitlc.learn.learners.qlearning import QLearner, TabularPolicy
 from mitlc.learn.run import RunError, prepare, train
-from mitlc.learn.vec import Step, VecProduct, tables
+from mitlc.learn.setting import batches
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse, to_text
 from mitlc.worlds import Sparse, load_world
@@ -135,7 +135,8 @@ def test_policy_success_is_the_optimum_of_the_restricted_product(seed: int) -> N
 @pytest.mark.parametrize("spec", ["G F a & G F b", "F G a", "(!a U[2,4] a) & (!b U[3,6] b)"])
 def test_simulator_success_matches_the_exact_value(spec: str) -> None:
     """20,000 episodes of a random memoryless policy in the simulator, measured by the one
-    Monte-Carlo estimate (:func:`mitlc.learn.montecarlo.monte_carlo`), succeed as often as its
+    Monte-Carlo estimate (:func:`mitlc.learn.evaluation.montecarlo.monte_carlo`), succeed as often
+    as its
     exact value says: within 4.5 standard errors, and inside the estimate's 95% Wilson
     interval (deterministic: the seeds are fixed)."""
     world = random_world(random.Random(7), spec)

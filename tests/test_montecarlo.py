@@ -1,4 +1,5 @@
-"""The one Monte-Carlo estimate (:mod:`mitlc.learn.montecarlo`): unbiased in a world that is
+"""The one Monte-Carlo estimate (:mod:`mitlc.learn.evaluation.montecarlo`): unbiased in a world
+that is
 not finite, where counting the first episodes to end over parallel envs is not; reproducible
 whatever its batches. (On a finite world it agrees with the exact success of a memoryless
 policy: ``tests/test_learn.py::test_simulator_success_matches_the_exact_value``.)"""
@@ -12,9 +13,9 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from mitlc.learn.base import Episodes, Policy
 from mitlc.learn.config import resolve
-from mitlc.learn.montecarlo import Estimate, first_episodes, monte_carlo, wilson
+from mitlc.learn.evaluation.montecarlo import Estimate, first_episodes, monte_carlo, wilson
+from mitlc.learn.learners.base import Episodes, Policy
 from mitlc.learn.setting import batches, prepare
 from mitlc.worlds.model import IntArray
 

@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from typer.testing import CliRunner
 
 from mitlc.cli import app
-from mitlc.learn.plot_plane import plane_figure
+from mitlc.learn.plots.plane import plane_figure
 from mitlc.worlds import WorldError, load_world, read_world_file
 from mitlc.worlds.grid import HEADING, check
 from mitlc.worlds.load import is_plane_world, load_plane_world, read_any_world_file

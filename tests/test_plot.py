@@ -1,5 +1,5 @@
-"""Figures of a run (``mitlc.learn.plot``) and the greedy rollouts they draw
-(``mitlc.learn.trajectories``), on tiny tabular Q-learning runs of the paper's worlds."""
+"""Figures of a run (``mitlc.learn.plots``) and the greedy rollouts they draw
+(``mitlc.learn.evaluation.trajectories``), on tiny tabular Q-learning runs of the paper's worlds."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from mitlc.learn.config import resolve
-from mitlc.learn.plot import (
+from mitlc.learn.evaluation.trajectories import Trajectory, rollouts
+from mitlc.learn.plots import (
     AUTOMATON,
     CURVE_SIZE,
     DPI,
@@ -25,7 +26,6 @@ from mitlc.learn.plot import (
     read_metrics,
 )
 from mitlc.learn.run import METRICS, RunError, load_learner, train
-from mitlc.learn.trajectories import Trajectory, rollouts
 from mitlc.worlds.model import World
 from tests.conftest import ROOT
 

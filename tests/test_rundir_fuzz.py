@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 
 from mitlc.errors import MitlcError
-from mitlc.learn import checkpoint
-from mitlc.learn.plot import read_metrics
+from mitlc.learn.plots import read_metrics
 from mitlc.learn.run import load_learner, train
+from mitlc.learn.rundir import checkpoint
 from tests.test_checkpoint import CASE1, settings
 
 ODD: list[Any] = [

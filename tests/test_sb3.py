@@ -1,4 +1,5 @@
-"""Stable-Baselines3 as a backend (mitlc.learn.sb3): train, eval, plot, checkpoints without pickle,
+"""Stable-Baselines3 as a backend (mitlc.learn.backends.sb3): train, eval, plot, checkpoints
+without pickle,
 resume, the greedy policy against the wrapped env, and the documented example."""
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
 
 from mitlc.cli import app
+from mitlc.learn.backends.sb3 import wrapped_env
+from mitlc.learn.backends.sb3_policy import SB3Learner, SB3Policy
 from mitlc.learn.run import load_learner
-from mitlc.learn.sb3 import wrapped_env
-from mitlc.learn.sb3_policy import SB3Learner, SB3Policy
 from tests.conftest import ROOT
 
 runner = CliRunner()
@@ -184,7 +185,7 @@ def test_the_example_trains_and_evaluates_through_is_success() -> None:
 
 def test_a_stopped_run_checkpoints_and_a_resumed_one_finishes(tmp_path: Path) -> None:
     """What Ctrl-C does in ``mitlc train``: the run checkpoints where it stopped."""
-    from mitlc.learn import sb3
+    from mitlc.learn.backends import sb3
     from mitlc.learn.config import SB3Config, TrainConfig
 
     tiny = SB3Config(steps=512, num_envs=2, n_steps=64, batch_size=64, n_epochs=2,
@@ -210,8 +211,8 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     and plot run, and the policy mitlc evaluates (its features of the learners' view) chooses
     what ``predict(obs, deterministic=True)`` chooses on the wrapper's flat observation."""
     import tests.open_envs  # noqa: F401 - registers MitlcTest/DictChain-v0
-    from mitlc.learn.envvec import task_vector
-    from mitlc.learn.plane_run import open_env
+    from mitlc.learn.envs.envvec import task_vector
+    from mitlc.learn.learners.open_world import open_env
     from mitlc.learn.run import load_learner
     from tests.test_env_task import DICT_CHAIN
     from tests.test_envvec import CORRIDOR

@@ -122,9 +122,7 @@ def test_rows_of_explicit_tables_round_trip() -> None:
         for s in range(3):
             union = Letters.of(0, ())
             for target, mark, letters in built.edges(s):
-                assert all(
-                    (delta[s][m], marks[s][m]) == (target, mark) for m in letters.letters(n)
-                )
+                assert all((delta[s][m], marks[s][m]) == (target, mark) for m in letters.letters(n))
                 assert (union & letters).is_empty
                 union = union | letters
             assert union.letters(n) == list(range(1 << n))

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from mitlc.automata import translate
-from mitlc.learn.exact import policy_success
-from mitlc.learn.vec import VecProduct, tables
+from mitlc.learn.envs.vec import VecProduct, tables
+from mitlc.learn.evaluation.exact import policy_success
 from mitlc.product import ProductEnv, build_product
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.syntax import ast, parse, to_text

@@ -12,8 +12,8 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 from mitlc.automata import DigitalAutomaton, translate
-from mitlc.learn.vec import tables
-from mitlc.learn.vector import ProductVectorEnv
+from mitlc.learn.envs.vec import tables
+from mitlc.learn.envs.vector import ProductVectorEnv
 from mitlc.product import ProductEnv, build_product
 from mitlc.worlds.model import World
 from tests.test_task_agreement import random_world, specs
@@ -32,6 +32,7 @@ def test_the_vector_env_steps_as_gymnasiums_sync_vector_env(seed: int) -> None:
         t = tables(product, world)
         n = 3
         ours = ProductVectorEnv(t, n, seed=seed)
+
         def make(world: World = world, automaton: DigitalAutomaton = automaton) -> ProductEnv:
             return ProductEnv(world, automaton)
 
@@ -107,7 +108,7 @@ def test_the_learners_view_of_the_simulator_is_what_its_infos_say() -> None:
     """``VectorTask`` reads the simulator's own step (``step_task``) or decodes the gymnasium
     API's observations and infos: the same steps, product states included."""
     from mitlc.learn.config import resolve
-    from mitlc.learn.envvec import VectorTask
+    from mitlc.learn.envs.envvec import VectorTask
     from mitlc.learn.run import prepare
     from tests.conftest import ROOT
 
@@ -138,7 +139,7 @@ def test_the_simulator_and_a_vector_of_wrapped_envs_give_the_learners_the_same_s
     """On deterministic worlds, the learners' view of the product simulator and of gymnasium's
     ``SyncVectorEnv`` of ``ProductEnv`` (``TaskWrapper`` over the grid) agree step by step
     (the product merges decided states, so what a decided end reached is not compared)."""
-    from mitlc.learn.envvec import VectorTask, task_vector
+    from mitlc.learn.envs.envvec import VectorTask, task_vector
 
     rng = random.Random(seed)
     actions_rng = np.random.default_rng(seed)

@@ -336,9 +336,7 @@ def test_json_schema_refuses_bad_shapes(name: str) -> None:
     assert schema_errors(data, schema, schema) != []
 
 
-@pytest.mark.parametrize(
-    ("kind", "folder"), [("env-world", "gym"), ("plane-world", "continuous")]
-)
+@pytest.mark.parametrize(("kind", "folder"), [("env-world", "gym"), ("plane-world", "continuous")])
 def test_json_schemas_of_env_and_plane_worlds_accept_the_shipped_ones(
     kind: str, folder: str
 ) -> None:

@@ -13,7 +13,7 @@ A world file may say::
 A section's ``episodes`` is that learner's budget: it wins over the top-level ``episodes`` when
 the learner runs (so ``--algo dqn`` on a file tuned for ``q`` does not inherit its budget), and
 an ``episodes`` override (``--episodes``) wins over both. The ``sb3-*`` algorithms (Stable-
-Baselines3, :mod:`mitlc.learn.sb3`) share the ``sb3`` section (:class:`SB3Config`), whose
+Baselines3, :mod:`mitlc.learn.backends.sb3`) share the ``sb3`` section (:class:`SB3Config`), whose
 budget is ``sb3.steps`` environment steps.
 
 Every learner's config is a frozen dataclass whose fields have defaults; :func:`resolve`
@@ -72,7 +72,8 @@ class QConfig:
     """Optimistic when at least the largest return (the paper's rewards are 100): untried
     actions look good, which drives exploration to the rare successes of a timed task."""
     crm: bool = False
-    """Counterfactual experience (:mod:`mitlc.learn.crm`): every world step also updates every
+    """Counterfactual experience (:mod:`mitlc.learn.learners.crm`): every world step also updates
+    every
     other automaton state and frontier it tells about."""
 
 
@@ -96,7 +97,7 @@ class DQNConfig:
     """For a Box observation (a continuous world): also a one-hot of the tile it lies in, the
     box cut into this many tiles per axis (tile coding; 0: the values alone)."""
     crm: bool = False
-    """Counterfactual experience (:mod:`mitlc.learn.crm`) in the replay memory."""
+    """Counterfactual experience (:mod:`mitlc.learn.learners.crm`) in the replay memory."""
     double: bool = True
     epsilon_start: float = 1.0
     epsilon_end: float = 0.02
@@ -148,7 +149,7 @@ class DRQNConfig:
     box cut into this many tiles per axis (tile coding; 0: the values alone)."""
 
 
-# -- Stable-Baselines3 (mitlc.learn.sb3): the section of the sb3-* algorithms ----------------------
+# -- Stable-Baselines3 (mitlc.learn.backends.sb3): the section of the sb3-* algorithms -------------
 
 SB3_STEPS = 100_000
 """The default budget of an sb3 run, in environment steps."""
@@ -157,7 +158,8 @@ SB3_STEPS = 100_000
 @dataclass(frozen=True, slots=True)
 class SB3Config:
     """Stable-Baselines3's algorithms (``sb3-ppo``, ``sb3-dqn``, ``sb3-maskable-ppo``,
-    ``sb3-recurrent-ppo``; :mod:`mitlc.learn.sb3`). Budgets count environment steps. A 0 where
+    ``sb3-recurrent-ppo``; :mod:`mitlc.learn.backends.sb3`). Budgets count environment steps. A 0
+    where
     :attr:`RANGES` allows it means SB3's own default for the algorithm."""
 
     steps: int = SB3_STEPS

@@ -6,7 +6,7 @@ The directory holds
 * ``metrics.jsonl``: one line every ``log_every`` episodes (episodes, environment steps,
   success rate and mean return over those episodes, epsilon, seconds);
 * ``checkpoint_<steps>_steps.json``, ``.npz`` and (deep learners) ``.safetensors``, named by
-  ``checkpoint.json`` (see :mod:`mitlc.learn.checkpoint`: data only, never a pickle): the
+  ``checkpoint.json`` (see :mod:`mitlc.learn.rundir.checkpoint`: data only, never a pickle): the
   learner, the episodes in flight, every random state and the counters, written every
   ``checkpoint_every`` episodes, at the end, and when the caller asks the run to stop (Ctrl-C
   in the CLI); the ``keep_checkpoints`` latest are kept. ``train(..., resume=True)`` continues
@@ -33,14 +33,15 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.learn import checkpoint
-from mitlc.learn.base import Learner, automaton_potential, potential
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.envvec import VectorTask
-from mitlc.learn.plane_run import make_open_learner
-from mitlc.learn.rundir import METRICS, SUMMARY, locked
-from mitlc.learn.rundir import RunError as RunError
-from mitlc.learn.runlog import (
+from mitlc.learn.envs.envvec import VectorTask
+from mitlc.learn.envs.vector import ProductVectorEnv
+from mitlc.learn.learners.base import Learner, automaton_potential, potential
+from mitlc.learn.learners.open_world import make_open_learner
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.files import METRICS, SUMMARY, locked
+from mitlc.learn.rundir.files import RunError as RunError
+from mitlc.learn.rundir.runlog import (
     Progress,
     RunResult,
     Tally,
@@ -49,6 +50,7 @@ from mitlc.learn.runlog import (
     truncate_metrics,
     write_json,
 )
+from mitlc.learn.rundir.state import Stateful, one_line, restore
 from mitlc.learn.setting import (
     CONFIG,
     Setting,
@@ -59,20 +61,18 @@ from mitlc.learn.setting import (
     setting_notes,
     task_vector_of,
 )
-from mitlc.learn.state import Stateful, one_line, restore
-from mitlc.learn.vector import ProductVectorEnv
 from mitlc.limits import Deadline
 
 CHECKPOINT = checkpoint.INDEX
 ROWS, UNCHECKED = ("learner.replay.data",), ("learner.optimizer.state",)
-"""For :func:`mitlc.learn.state.conform`: a replay memory holds any number of rows up to
+"""For :func:`mitlc.learn.rundir.state.conform`: a replay memory holds any number of rows up to
 its capacity; the optimiser's moments are checked against the network when restored."""
 
 
 def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     """The learner ``setting.config.algo`` names (the deep ones import torch): on the
     product's simulator where the world is finite, else on the world's wrapped envs
-    (:func:`mitlc.learn.plane_run.make_open_learner`)."""
+    (:func:`mitlc.learn.learners.open_world.make_open_learner`)."""
     if not setting.finite:
         return make_open_learner(setting, rng)
     world, product, table = setting.model()
@@ -90,18 +90,18 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             "drqn on this world"
         )
     if config.algo == "q":
-        from mitlc.learn.crm import Counterfactuals
-        from mitlc.learn.qlearning import QLearner
+        from mitlc.learn.learners.crm import Counterfactuals
+        from mitlc.learn.learners.qlearning import QLearner
 
         crm = Counterfactuals.build(product, world, setting.automaton) if config.q.crm else None
         return QLearner(table, config, rng, phi, crm)
     if config.algo == "dqn":
-        from mitlc.learn.crm import Counterfactuals
-        from mitlc.learn.dqn import DQNLearner
+        from mitlc.learn.learners.crm import Counterfactuals
+        from mitlc.learn.learners.dqn import DQNLearner
 
         crm = Counterfactuals.build(product, world, setting.automaton) if config.dqn.crm else None
         return DQNLearner(table, config, rng, phi, crm)
-    from mitlc.learn.drqn import DRQNLearner
+    from mitlc.learn.learners.drqn import DRQNLearner
 
     return DRQNLearner(table, config, rng, phi)
 
@@ -116,7 +116,7 @@ def load_learner(directory: Path, *, deadline: Deadline | None = None) -> tuple[
     checkpointed."""
     setting = load_setting(directory, deadline=deadline)
     if setting.config.algo.startswith("sb3-"):  # Stable-Baselines3's runs
-        from mitlc.learn import sb3_policy
+        from mitlc.learn.backends import sb3_policy
 
         return setting, sb3_policy.load_learner(directory, setting)
     _, learner_rng = _rngs(setting.config.seed)
@@ -189,8 +189,8 @@ def train(
     returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
     :func:`prepare`), not the training, which runs its episodes. ``notes`` is given what the
     user should know before the run (:func:`setting_notes`)."""
-    if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.sb3
-        from mitlc.learn import sb3
+    if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.backends.sb3
+        from mitlc.learn.backends import sb3
 
         return sb3.train(
             world_path, config, out, spec=spec, resume=resume, progress=progress,

@@ -23,11 +23,11 @@ from mitlc.automata import DigitalAutomaton, translate
 from mitlc.errors import MitlcError
 from mitlc.files import write_atomically
 from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
-from mitlc.learn.envvec import VectorTask, task_vector
-from mitlc.learn.montecarlo import Batches
-from mitlc.learn.rundir import RunError, read_json
-from mitlc.learn.state import one_line
-from mitlc.learn.vec import Tables, VecProduct, tables
+from mitlc.learn.envs.envvec import VectorTask, task_vector
+from mitlc.learn.envs.vec import Tables, VecProduct, tables
+from mitlc.learn.evaluation.montecarlo import Batches
+from mitlc.learn.rundir.files import RunError, read_json
+from mitlc.learn.rundir.state import one_line
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
 from mitlc.product.worlds import AnyWorld, is_finite, open_world, task_env
@@ -96,14 +96,14 @@ def setting_notes(setting: Setting) -> list[str]:
 
 def task_vector_of(setting: Setting, num_envs: int, seed: int, *, flatten: bool = False) -> Any:
     """``num_envs`` fresh envs of the world under the task wrapper, as a
-    :class:`~mitlc.learn.envvec.VectorTask` whose first env is reset with ``seed``."""
+    :class:`~mitlc.learn.envs.envvec.VectorTask` whose first env is reset with ``seed``."""
     envs = [task_env(setting.world, setting.automaton, flatten=flatten) for _ in range(num_envs)]
     vector: VectorTask = task_vector(envs, seed=seed)
     return vector
 
 
 def batches(setting: Setting, seed: int) -> Batches:
-    """The batches of :func:`mitlc.learn.montecarlo.monte_carlo` for the run's world: the
+    """The batches of :func:`mitlc.learn.evaluation.montecarlo.monte_carlo` for the run's world: the
     product's simulator where it is finite (the batch of episodes ``first ..`` draws from
     ``default_rng((seed, first))``), else the world's wrapped envs (episode ``j`` starts from
     a reset with ``base + j``, ``base`` a 63-bit number drawn from ``seed``, so that the

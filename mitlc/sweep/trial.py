@@ -11,7 +11,8 @@ over. ``result.json`` is written atomically, last: its presence means the trial 
 The score of a trial is its greedy success over the exact optimum of the same event
 (``pmax_horizon``) where the world is finite and an MDP: the exact success of the policy where
 it is known (a memoryless policy on an MDP), else the Monte-Carlo rate
-(:func:`mitlc.learn.montecarlo.monte_carlo`, through :func:`mitlc.learn.evaluate.evaluate`). For
+(:func:`mitlc.learn.evaluation.montecarlo.monte_carlo`, through
+:func:`mitlc.learn.evaluation.evaluate.evaluate`). For
 a POMDP the optimum is the fully observable upper bound; for a world that is not finite there
 is none, and the score is the raw success rate (``score_kind`` says which). An optimum of
 exactly 0 is an exact optimum all the same: no policy succeeds, so every policy attains it and
@@ -57,11 +58,11 @@ def run_trial(
 ) -> dict[str, Any]:
     """Train and evaluate ``trial`` under ``root`` (see the module docstring); its result."""
     from mitlc.files import write_atomically
-    from mitlc.learn import checkpoint
     from mitlc.learn.config import config_for
-    from mitlc.learn.evaluate import evaluate
+    from mitlc.learn.evaluation.evaluate import evaluate
     from mitlc.learn.run import train
-    from mitlc.learn.rundir import SUMMARY
+    from mitlc.learn.rundir import checkpoint
+    from mitlc.learn.rundir.files import SUMMARY
     from mitlc.learn.setting import CONFIG
 
     directory = trial_directory(root, trial)

@@ -5,7 +5,7 @@ user's own registered simulator).
 Such a world cannot be checked (there is no exact optimum), but it is learned from the command
 line as a continuous world is: ``mitlc train`` wraps the env in :class:`mitlc.gym.TaskWrapper`
 with the file's labels, task, rewards and horizon, and the learners read a vector of those
-wrapped envs (:mod:`mitlc.learn.envvec`). Its labels may use every form of
+wrapped envs (:mod:`mitlc.learn.envs.envvec`). Its labels may use every form of
 :mod:`mitlc.labels`: ``obs`` and ``decoded`` for a discrete observation, ``box`` and ``disc``
 for a position in a ``Box`` observation, ``info`` for an info key, ``key`` for a part of a
 ``Dict`` observation, or a list of forms. They are checked against the env's observation space

@@ -21,7 +21,8 @@ from pathlib import Path
 from mitlc.automata import compile_formula
 from mitlc.automata.dot import render, to_dot
 from mitlc.files import write_atomically
-from mitlc.learn.base import Policy
+from mitlc.learn.evaluation.trajectories import rollouts
+from mitlc.learn.learners.base import Policy
 from mitlc.learn.plots.common import (
     AUTOMATON,
     CURVE_SIZE,
@@ -37,7 +38,6 @@ from mitlc.learn.plots.grid import GRID_SIZE, trajectory_figure
 from mitlc.learn.plots.plane import plane_figure
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, read_config
-from mitlc.learn.trajectories import rollouts
 from mitlc.syntax import parse
 from mitlc.worlds.load import kind_of
 from mitlc.worlds.plane import PlaneWorld
@@ -88,7 +88,7 @@ def _trajectories(
     algo = setting.config.algo
     world = setting.world
     if isinstance(world, PlaneWorld):
-        from mitlc.learn.plane_run import rollouts_plane
+        from mitlc.learn.learners.open_world import rollouts_plane
 
         paths = rollouts_plane(setting, policy, count, seed)
         wins = sum(success for _, success in paths)

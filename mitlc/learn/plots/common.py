@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
-from mitlc.learn.rundir import METRIC_FIELDS, METRICS, RunError, read_metrics_rows
+from mitlc.learn.rundir.files import METRIC_FIELDS, METRICS, RunError, read_metrics_rows
 from mitlc.worlds.model import FloatArray
 
 LEARNING_CURVE, TRAJECTORIES, AUTOMATON = "learning_curve.png", "trajectories.png", "automaton.png"

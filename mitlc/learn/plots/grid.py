@@ -16,9 +16,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
+from mitlc.learn.evaluation.trajectories import Trajectory
 from mitlc.learn.plots.common import DPI, PlotError
 from mitlc.learn.setting import Setting
-from mitlc.learn.trajectories import Trajectory
 from mitlc.worlds import read_world_file
 from mitlc.worlds.grid import Layout, check
 

@@ -19,7 +19,7 @@ sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc 
   ``metrics.jsonl`` (a line every ``sb3.log_every`` steps from an SB3 callback: episodes,
   steps, the success rate from ``info["is_success"]`` and the mean return of the episodes ended
   since the last line, ``epsilon`` (DQN's exploration rate, 0 for the PPO family), seconds),
-  ``summary.json``, the lock, and checkpoints written by :mod:`mitlc.learn.checkpoint` (every
+  ``summary.json``, the lock, and checkpoints written by :mod:`mitlc.learn.rundir.checkpoint` (every
   ``sb3.checkpoint_every`` steps, at the end and on Ctrl-C): the policy's ``state_dict()`` and
   its optimiser's as safetensors, SB3's settings and counters as JSON; never SB3's zip, which
   holds pickles.
@@ -29,7 +29,8 @@ sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc 
   steps), a PPO rollout in progress is collected again, and **sb3-dqn's replay memory is not
   saved**: the resumed run refills it for ``sb3.learning_starts`` steps before it learns again.
 * **eval and plot** (:func:`load_learner`, called by :func:`mitlc.learn.run.load_learner`;
-  :mod:`mitlc.learn.sb3_policy`): the policy acts greedily (as ``deterministic=True``) among
+  :mod:`mitlc.learn.backends.sb3_policy`): the policy acts greedily (as ``deterministic=True``)
+  among
   the valid actions in mitlc's simulator of the product, the model of the wrapped env, fed the
   same observation vector; so a run is reported as mitlc's learners are: success with a Wilson
   interval beside ``pmax_horizon``, and for a memoryless policy on an MDP its exact success.
@@ -47,11 +48,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from mitlc.learn import checkpoint
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.nets import configure_torch
-from mitlc.learn.rundir import METRICS, SUMMARY, RunError, locked
-from mitlc.learn.runlog import (
+from mitlc.learn.learners.nets import configure_torch
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.files import METRICS, SUMMARY, RunError, locked
+from mitlc.learn.rundir.runlog import (
     Progress,
     RunResult,
     Tally,
@@ -60,6 +61,7 @@ from mitlc.learn.runlog import (
     truncate_metrics,
     write_json,
 )
+from mitlc.learn.rundir.state import one_line, restore
 from mitlc.learn.setting import (
     CONFIG,
     Setting,
@@ -68,7 +70,6 @@ from mitlc.learn.setting import (
     save_config,
     setting_notes,
 )
-from mitlc.learn.state import one_line, restore
 from mitlc.limits import Deadline
 from mitlc.product.worlds import task_env
 
@@ -101,7 +102,8 @@ def algorithm(algo: str) -> tuple[Any, str]:
 def wrapped_env(setting: Setting) -> Any:
     """The env an sb3 run learns on: the world's wrapped env with the wrapper's flat
     observation (the env's observation flattened, one-hot automaton state, frontier bits: the
-    features of :class:`mitlc.learn.nets.Encoder`, which evaluation feeds the same network),
+    features of :class:`mitlc.learn.learners.nets.Encoder`, which evaluation feeds the same
+    network),
     for every kind of world (:func:`mitlc.product.worlds.task_env`)."""
     return task_env(setting.world, setting.automaton, flatten=True)
 
@@ -133,7 +135,8 @@ def sb3_settings(config: TrainConfig) -> dict[str, Any]:
 
 
 class ModelState:
-    """An SB3 model as :class:`~mitlc.learn.state.Stateful` data: settings, policy and optimiser
+    """An SB3 model as :class:`~mitlc.learn.rundir.state.Stateful` data: settings, policy and
+    optimiser
     ``state_dict()``s (tensors), counters."""
 
     COUNTERS = ("num_timesteps", "_n_updates", "_episode_num", "_n_calls")

@@ -13,14 +13,14 @@ The vector env must be what :class:`mitlc.gym.TaskWrapper` makes of each env, ba
   the frontier), ``action_mask`` (the valid actions, also at reset), ``success`` and ``step``.
 
 :func:`task_vector` builds one from wrapped envs (a ``SyncVectorEnv``); mitlc's numpy simulator
-of a finite product is one too (:class:`mitlc.learn.vector.ProductVectorEnv`), and its infos
+of a finite product is one too (:class:`mitlc.learn.envs.vector.ProductVectorEnv`), and its infos
 add ``product_state``, the finite-product adapter read only by the learners that index the
 product (tabular Q-learning over product states, counterfactual experience) and by exact
 evaluation; elsewhere ``state`` is -1.
 
 :class:`VectorTask` gives the learners the current ``observation`` (the env's part),
 ``automaton``, ``mask`` (the frontier), ``state``, :meth:`~VectorTask.valid_actions`, and
-:meth:`~VectorTask.step`, whose :class:`~mitlc.learn.vec.Step` describes what each episode
+:meth:`~VectorTask.step`, whose :class:`~mitlc.learn.envs.vec.Step` describes what each episode
 reached *before* an ended one restarted, with its return and length so far.
 """
 
@@ -35,7 +35,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import iterate
 
-from mitlc.learn.vec import Step
+from mitlc.learn.envs.vec import Step
 from mitlc.worlds.model import BoolArray, IntArray
 
 TASK_KEYS = ("automaton", "frontier")
@@ -98,7 +98,7 @@ class VectorTask:
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to go on exactly. A simulator that checkpoints itself (it has
         ``state_dict``, ``load_state_dict`` and ``current``, as
-        :class:`~mitlc.learn.vector.ProductVectorEnv`) gives its own state, which holds its
+        :class:`~mitlc.learn.envs.vector.ProductVectorEnv`) gives its own state, which holds its
         episodes' returns; otherwise each in-process wrapper's run (with its env's state) and
         the episodes' current view."""
         venv: Any = self.venv
@@ -148,8 +148,8 @@ class VectorTask:
 
     def step(self, actions: IntArray) -> Step:
         """Take ``actions[i]`` in episode ``i``; ended episodes restart. A vector env with
-        ``step_task`` (:class:`~mitlc.learn.vector.ProductVectorEnv`) gives the step's
-        :class:`~mitlc.learn.vec.Step` itself, which is what the infos would say, faster."""
+        ``step_task`` (:class:`~mitlc.learn.envs.vector.ProductVectorEnv`) gives the step's
+        :class:`~mitlc.learn.envs.vec.Step` itself, which is what the infos would say, faster."""
         fast = getattr(self.venv, "step_task", None)
         if fast is not None:
             result: Step = fast(actions)

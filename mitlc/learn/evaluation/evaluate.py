@@ -1,15 +1,17 @@
 """How good a learned policy is: ``evaluate(run_directory) -> Evaluation``.
 
 The greedy policy runs ``episodes`` seeded episodes through the one Monte-Carlo estimate of
-every kind of world, :func:`mitlc.learn.montecarlo.monte_carlo` (each slot's first episode
+every kind of world, :func:`mitlc.learn.evaluation.montecarlo.monte_carlo` (each slot's first
+episode
 only, so short episodes are not over-counted): in mitlc's simulator of a finite product or in
 the wrapped envs of a world that is not finite (:func:`mitlc.learn.setting.batches`). Its
-success rate comes with a 95% Wilson score interval (Wilson, JASA 1927). Beside it stand, for a finite world, the optimum of the same
+success rate comes with a 95% Wilson score interval (Wilson, JASA 1927). Beside it stand, for a
+finite world, the optimum of the same
 event, :func:`mitlc.check.solve.pmax_horizon` on the product (for a POMDP the fully observable
 value, an upper bound, and below it the exact success of an observation-based policy,
 :func:`mitlc.check.observed.observed_bound`; Storm's belief bounds on request), and, when the
 policy is memoryless on an MDP's product (tabular Q, DQN), its exact success probability
-(:func:`mitlc.learn.exact.policy_success`).
+(:func:`mitlc.learn.evaluation.exact.policy_success`).
 """
 
 from __future__ import annotations
@@ -20,8 +22,8 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 from mitlc.check.solve import pmax_horizon
-from mitlc.learn.exact import policy_success
-from mitlc.learn.montecarlo import monte_carlo, wilson
+from mitlc.learn.evaluation.exact import policy_success
+from mitlc.learn.evaluation.montecarlo import monte_carlo, wilson
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, batches
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
@@ -112,7 +114,8 @@ def evaluate(
 ) -> Evaluation:
     """Evaluate the run in ``directory`` (its last checkpoint), of any world; ``episodes``
     defaults to the run's ``eval_episodes``. The Monte-Carlo estimate is the one of every world
-    (:func:`mitlc.learn.montecarlo.monte_carlo` over :func:`mitlc.learn.setting.batches`); a
+    (:func:`mitlc.learn.evaluation.montecarlo.monte_carlo` over
+    :func:`mitlc.learn.setting.batches`); a
     finite world adds its optimum and, for a memoryless policy on an MDP, the policy's exact
     success. ``pomdp_bounds`` asks Storm for belief bounds (slow on big worlds; needs
     stormpy). The set-up and the exact figures stop at ``deadline`` (by default

@@ -1,6 +1,6 @@
 """mitlc's simulator of a finite product as a ``gymnasium.vector.VectorEnv``.
 
-:class:`ProductVectorEnv` presents :class:`mitlc.learn.vec.VecProduct` (a batch of product
+:class:`ProductVectorEnv` presents :class:`mitlc.learn.envs.vec.VecProduct` (a batch of product
 episodes stepped in numpy) with gymnasium's vector API, so that a learner written for any
 vector env of wrapped environments reads it as it reads ``SyncVectorEnv([ProductEnv, ...])``:
 
@@ -17,12 +17,12 @@ vector env of wrapped environments reads it as it reads ``SyncVectorEnv([Product
   ``RecordEpisodeStatistics``), in ``final_info`` and, for convenience, at the top level;
 * every step's infos have the task wrapper's entries (:class:`mitlc.gym.TaskWrapper`):
   ``accepting`` (the step added a set to the frontier), ``action_mask`` and ``step``, and
-  ``product_state``, the finite-product adapter (:mod:`mitlc.learn.envvec`).
+  ``product_state``, the finite-product adapter (:mod:`mitlc.learn.envs.envvec`).
 
 The product merges the states where the task is decided, so an episode that ended decided (or
 a task decided at the very start) shows cell 0 and automaton state 0 there; no learner reads
 them (a terminated step does not bootstrap). The step itself is the simulator's;
-:attr:`ProductVectorEnv.last_step` keeps its :class:`~mitlc.learn.vec.Step` (product states
+:attr:`ProductVectorEnv.last_step` keeps its :class:`~mitlc.learn.envs.vec.Step` (product states
 included) for learners of the finite product.
 """
 
@@ -36,7 +36,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from mitlc.learn.vec import Step, Tables, VecProduct
+from mitlc.learn.envs.vec import Step, Tables, VecProduct
 from mitlc.worlds.model import BoolArray, IntArray
 
 Observation = dict[str, IntArray]
@@ -131,15 +131,15 @@ class ProductVectorEnv(gym.vector.VectorEnv[Observation, IntArray, Any]):
 
     def step_task(self, actions: IntArray) -> Step:
         """:meth:`step` as the learners read it, without building the observation and infos:
-        the simulator's own :class:`~mitlc.learn.vec.Step` (what
-        :class:`~mitlc.learn.envvec.VectorTask` would decode from them; a test holds the two
+        the simulator's own :class:`~mitlc.learn.envs.vec.Step` (what
+        :class:`~mitlc.learn.envs.envvec.VectorTask` would decode from them; a test holds the two
         equal). Read :meth:`current` for the episodes now."""
         step = self.sim.step(np.asarray(actions, dtype=np.int64))
         self.last_step = step
         return step
 
     def state_dict(self) -> dict[str, Any]:
-        """The simulator's state (:meth:`mitlc.learn.vec.VecProduct.state_dict`)."""
+        """The simulator's state (:meth:`mitlc.learn.envs.vec.VecProduct.state_dict`)."""
         return self.sim.state_dict()
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:

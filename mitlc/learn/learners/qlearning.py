@@ -16,7 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.learn.base import (
+from mitlc.learn.config import QConfig, TrainConfig
+from mitlc.learn.envs.vec import Step, Tables
+from mitlc.learn.learners.base import (
     Episodes,
     Learner,
     Policy,
@@ -25,9 +27,7 @@ from mitlc.learn.base import (
     random_valid,
     transition_signal,
 )
-from mitlc.learn.config import QConfig, TrainConfig
-from mitlc.learn.crm import Batch, Counterfactuals, concatenate, select
-from mitlc.learn.vec import Step, Tables
+from mitlc.learn.learners.crm import Batch, Counterfactuals, concatenate, select
 from mitlc.worlds.model import FloatArray, IntArray
 
 
@@ -65,7 +65,7 @@ class QLearner(Learner):
     ) -> None:
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
         self.counterfactuals = counterfactuals
-        """With them (``q.crm``), counterfactual experience (:mod:`mitlc.learn.crm`)."""
+        """With them (``q.crm``), counterfactual experience (:mod:`mitlc.learn.learners.crm`)."""
         self.settings: QConfig = config.q
         self.num_envs = self.settings.num_envs
         shape = (tables.all_sets + 1, tables.num_states, tables.num_actions)
@@ -80,7 +80,7 @@ class QLearner(Learner):
     def train_step(self, env: Episodes, fraction: float) -> Step:
         """One epsilon-greedy step of every episode and its update (with counterfactual
         experience on: the update of every automaton state and frontier the world steps
-        tell about, :mod:`mitlc.learn.crm`)."""
+        tell about, :mod:`mitlc.learn.learners.crm`)."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         state, mask = env.state, env.mask

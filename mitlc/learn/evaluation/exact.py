@@ -1,7 +1,7 @@
 """The exact success probability of a memoryless policy on an MDP's product: the Markov chain
 it induces, solved by backward induction over the horizon.
 
-The event is the episode's success (see :mod:`mitlc.learn.vec`): never *violated* within
+The event is the episode's success (see :mod:`mitlc.learn.envs.vec`): never *violated* within
 ``horizon`` world actions, and *satisfied* or a completed round of all acceptance sets within
 them (a violation after a completed round is a failure). The
 policy may depend on the frontier mask, so the values are indexed ``[mask, product state]``

@@ -3,14 +3,14 @@ reinforcement learning", Nature 2015), optionally Double DQN (van Hasselt, Guez 
 "Deep reinforcement learning with double Q-learning", AAAI 2016).
 
 The network maps what the agent sees (the cell, the automaton state and the frontier mask, see
-:class:`mitlc.learn.nets.Encoder`) to a value per action. Acting is epsilon-greedy over the
+:class:`mitlc.learn.learners.nets.Encoder`) to a value per action. Acting is epsilon-greedy over the
 valid actions of each episode (the automaton state decides which epsilon jumps exist). Every
 transition of the batch goes to a uniform replay memory; every ``train_every`` vector steps a
 minibatch moves the network toward ``r + gamma * Q_target(next, best valid action)`` (0 after a
 terminal step; a truncated episode still bootstraps, as the horizon is not part of the state)
 under the Huber loss, with the gradient norm clipped; the target network copies the online one
 every ``target_update`` gradient steps. ``r`` and ``gamma`` are the learning signal of
-:func:`mitlc.learn.base.learning_signal` (discount per transition, optional shaping), times
+:func:`mitlc.learn.learners.base.learning_signal` (discount per transition, optional shaping), times
 ``reward_scale``.
 """
 
@@ -22,7 +22,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from mitlc.learn.base import (
+from mitlc.learn.config import DQNConfig, TrainConfig
+from mitlc.learn.envs.vec import Step, Tables
+from mitlc.learn.learners.base import (
     Episodes,
     Learner,
     Policy,
@@ -32,9 +34,8 @@ from mitlc.learn.base import (
     random_valid,
     transition_signal,
 )
-from mitlc.learn.config import DQNConfig, TrainConfig
-from mitlc.learn.crm import Batch, Counterfactuals
-from mitlc.learn.nets import (
+from mitlc.learn.learners.crm import Batch, Counterfactuals
+from mitlc.learn.learners.nets import (
     Encoder,
     Ring,
     anneal,
@@ -52,7 +53,6 @@ from mitlc.learn.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.learn.vec import Step, Tables
 from mitlc.worlds.model import FloatArray, IntArray
 
 
@@ -74,7 +74,8 @@ class DQNPolicy(Policy):
 
     def choices(self) -> IntArray:
         """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
-        (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success`. The policy
+        (-1 at the absorbing states), for :func:`mitlc.learn.evaluation.exact.policy_success`. The
+        policy
         is memoryless over (mask, product state) on an MDP, where the observation is the cell."""
         t = self.tables
         assert t is not None, "exact evaluation needs the finite product"
@@ -105,13 +106,13 @@ class DQNLearner(Learner):
         num_actions: int | None = None,
     ) -> None:
         """``tables``: the finite product it learns on; ``None`` for any wrapped env
-        (:class:`mitlc.learn.envvec.VectorTask`), with the ``encoder`` of its observations
+        (:class:`mitlc.learn.envs.envvec.VectorTask`), with the ``encoder`` of its observations
         (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
         self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
         self.counterfactuals = counterfactuals
         """With them (``dqn.crm``), every world step also stores the transitions of every
-        other automaton state and frontier it tells about (:mod:`mitlc.learn.crm`)."""
+        other automaton state and frontier it tells about (:mod:`mitlc.learn.learners.crm`)."""
         self.settings: DQNConfig = config.dqn
         s = self.settings
         self.num_envs = s.num_envs

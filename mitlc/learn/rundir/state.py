@@ -4,7 +4,7 @@ Before anything is restored, :func:`conform` compares the loaded state with the 
 fresh objects it will go into: the same dict keys, list lengths and scalar types, arrays and
 tensors of the same dtype and shape. Then each object's ``load_state_dict`` checks what only it
 knows (indices within its tables, a replay memory's size within its capacity). Whatever is
-wrong is a :class:`~mitlc.learn.rundir.RunError` naming the checkpoint's file, on one line.
+wrong is a :class:`~mitlc.learn.rundir.files.RunError` naming the checkpoint's file, on one line.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from mitlc.learn import checkpoint
-from mitlc.learn.checkpoint import tensor_type
-from mitlc.learn.rundir import RunError
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.checkpoint import tensor_type
+from mitlc.learn.rundir.files import RunError
 
 
 class Stateful(Protocol):

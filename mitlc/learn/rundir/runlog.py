@@ -11,7 +11,7 @@ from typing import Any
 
 from mitlc.files import write_atomically
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.rundir import read_metrics_rows
+from mitlc.learn.rundir.files import read_metrics_rows
 
 
 @dataclass(frozen=True, slots=True)

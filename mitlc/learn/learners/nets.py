@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from mitlc.learn.vec import Tables
+from mitlc.learn.envs.vec import Tables
 from mitlc.worlds.model import BoolArray, IntArray
 
 THREADS = 1

@@ -2,15 +2,17 @@
 env without a transition table (``env:``, :mod:`mitlc.worlds.env_task`), and its greedy
 rollouts for plots.
 
-There is no product: the learner steps a :class:`mitlc.learn.envvec.VectorTask` of the world's
+There is no product: the learner steps a :class:`mitlc.learn.envs.envvec.VectorTask` of the world's
 wrapped envs (:func:`mitlc.learn.setting.task_vector_of`): DQN or the recurrent DQN on any
-observation (:meth:`mitlc.learn.nets.Encoder.of_spaces`), or tabular Q-learning where the env's
-observation is discrete (:class:`mitlc.learn.qlearning_env.ObservedQLearner`). The run
+observation (:meth:`mitlc.learn.learners.nets.Encoder.of_spaces`), or tabular Q-learning where the
+env's
+observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). The run
 directory, metrics and checkpoints are those of every run (:mod:`mitlc.learn.run`). A
 checkpoint holds the learner, the tally and, for each env, the task monitor's state and, where
 the env has one (a continuous world's robot), the env's state, so a resumed run of a
 continuous world goes on exactly. Evaluation is Monte-Carlo only
-(:func:`mitlc.learn.montecarlo.monte_carlo` over :func:`mitlc.learn.setting.batches`, the one
+(:func:`mitlc.learn.evaluation.montecarlo.monte_carlo` over :func:`mitlc.learn.setting.batches`,
+the one
 estimate of every kind of world): no exact optimum exists, and the reports say so.
 """
 
@@ -21,8 +23,8 @@ from typing import cast
 import numpy as np
 from gymnasium.spaces import Discrete
 
-from mitlc.learn.base import Learner, Policy
-from mitlc.learn.rundir import RunError
+from mitlc.learn.learners.base import Learner, Policy
+from mitlc.learn.rundir.files import RunError
 from mitlc.learn.setting import Setting, task_vector_of
 
 LEARNERS = ("q", "dqn", "drqn")
@@ -40,8 +42,8 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         )
     if (config.algo == "dqn" and config.dqn.crm) or (config.algo == "q" and config.q.crm):
         raise RunError("counterfactual experience needs a finite product: not here")
-    from mitlc.learn.base import automaton_potential
-    from mitlc.learn.nets import Encoder
+    from mitlc.learn.learners.base import automaton_potential
+    from mitlc.learn.learners.nets import Encoder
 
     phi = automaton_potential(setting.automaton, config.shaping) if config.shaping else None
     probe = task_vector_of(setting, 1, 0)
@@ -54,7 +56,7 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
                            "--algo dqn or drqn")  # fmt: skip
         if phi is not None:
             raise RunError("shaping with tabular Q-learning needs a finite product: not here")
-        from mitlc.learn.qlearning_env import ObservedQLearner
+        from mitlc.learn.learners.qlearning_env import ObservedQLearner
 
         return ObservedQLearner(int(own.n), num_q, setting.automaton.num_sets,
                                 probe.num_actions, config, rng)  # fmt: skip
@@ -68,13 +70,13 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         tiles=config.drqn.tiles if recurrent else config.dqn.tiles,
     )
     if recurrent:
-        from mitlc.learn.drqn import DRQNLearner
+        from mitlc.learn.learners.drqn import DRQNLearner
 
         return DRQNLearner(
             None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions,
             horizon=setting.world.horizon,
         )  # fmt: skip
-    from mitlc.learn.dqn import DQNLearner
+    from mitlc.learn.learners.dqn import DQNLearner
 
     return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
 

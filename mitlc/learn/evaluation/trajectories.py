@@ -1,6 +1,6 @@
 """Greedy rollouts recorded step by step: ``rollouts(setting, policy, episodes, seed)``.
 
-Each of ``episodes`` slots of a :class:`~mitlc.learn.vec.VecProduct` runs its first episode
+Each of ``episodes`` slots of a :class:`~mitlc.learn.envs.vec.VecProduct` runs its first episode
 only. A trajectory lists the product positions the episode went through: the world cell, the
 automaton state and the world step (epsilon jumps take no step, so a step number repeats
 across a jump). The step that enters the absorbing *satisfied* or *violated* state ends the
@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from mitlc.automata.digital import Verdict
-from mitlc.learn.base import Policy
+from mitlc.learn.envs.vec import Step, VecProduct
+from mitlc.learn.learners.base import Policy
 from mitlc.learn.setting import Setting
-from mitlc.learn.vec import Step, VecProduct
 from mitlc.product.explicit import SATISFIED, VIOLATED
 from mitlc.worlds.model import BoolArray, IntArray
 
@@ -36,7 +36,7 @@ class Trajectory:
     steps: tuple[int, ...]
     """World actions taken before each position (0 at the start)."""
     success: bool
-    """The episode's success, as :class:`~mitlc.learn.vec.VecProduct` counts it."""
+    """The episode's success, as :class:`~mitlc.learn.envs.vec.VecProduct` counts it."""
     verdict: Verdict
     """``satisfied`` / ``violated`` when it entered that state, ``pending`` when truncated."""
     episode_return: float

@@ -2,12 +2,14 @@
 ``load_learner(directory, setting)``.
 
 The policy network alone is rebuilt from the run's settings (no algorithm, optimiser or replay
-memory) and loaded from the latest checkpoint (:mod:`mitlc.learn.checkpoint`: safetensors, no
+memory) and loaded from the latest checkpoint (:mod:`mitlc.learn.rundir.checkpoint`: safetensors, no
 pickle). It acts greedily, as SB3's ``predict(obs, deterministic=True)`` does (the most
 probable action, or the largest Q-value), among the valid actions, in mitlc's simulator of the
-product (:class:`~mitlc.learn.vec.VecProduct`, the model of the wrapped env the run learned on),
-fed the observation vector of :class:`mitlc.learn.sb3.FlatObservation`. So an sb3 run is
-evaluated as mitlc's learners are (:mod:`mitlc.learn.evaluate`), and a memoryless policy on an
+product (:class:`~mitlc.learn.envs.vec.VecProduct`, the model of the wrapped env the run learned
+on),
+fed the observation vector of :class:`mitlc.learn.backends.sb3.FlatObservation`. So an sb3 run is
+evaluated as mitlc's learners are (:mod:`mitlc.learn.evaluation.evaluate`), and a memoryless policy
+on an
 MDP also gets its exact success probability (:meth:`SB3Policy.choices`).
 """
 
@@ -19,14 +21,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from mitlc.learn import checkpoint
-from mitlc.learn.base import Episodes, Learner, Policy
-from mitlc.learn.nets import Encoder, build, configure_torch, greedy
-from mitlc.learn.rundir import RunError
-from mitlc.learn.sb3 import algorithm, sb3_settings, wrapped_env
+from mitlc.learn.backends.sb3 import algorithm, sb3_settings, wrapped_env
+from mitlc.learn.envs.vec import Step
+from mitlc.learn.learners.base import Episodes, Learner, Policy
+from mitlc.learn.learners.nets import Encoder, build, configure_torch, greedy
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.files import RunError
+from mitlc.learn.rundir.state import Mismatch, conform
 from mitlc.learn.setting import Setting, task_vector_of
-from mitlc.learn.state import Mismatch, conform
-from mitlc.learn.vec import Step
 from mitlc.worlds.model import IntArray
 
 CHUNK = 4096
@@ -34,7 +36,7 @@ CHUNK = 4096
 
 
 class SB3Policy(Policy):
-    """An SB3 policy acting greedily in a batch of :class:`~mitlc.learn.base.Episodes` (see
+    """An SB3 policy acting greedily in a batch of :class:`~mitlc.learn.learners.base.Episodes` (see
     the module docstring); memoryless, so :meth:`choices` gives it for exact evaluation on an
     MDP."""
 
@@ -59,7 +61,8 @@ class SB3Policy(Policy):
 
     def choices(self) -> IntArray:
         """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
-        (-1 at the absorbing states), for :func:`mitlc.learn.exact.policy_success` (an MDP,
+        (-1 at the absorbing states), for :func:`mitlc.learn.evaluation.exact.policy_success` (an
+        MDP,
         where the observation is the cell)."""
         t = self.tables
         assert t is not None, "exact evaluation needs the finite product"
@@ -80,7 +83,7 @@ class SB3Policy(Policy):
 
 class SB3RecurrentPolicy(Policy):
     """A recurrent PPO policy acting greedily in a batch of
-    :class:`~mitlc.learn.base.Episodes`, its LSTM state carried over each episode and
+    :class:`~mitlc.learn.learners.base.Episodes`, its LSTM state carried over each episode and
     restarted with the next."""
 
     def __init__(self, net: Any, encoder: Encoder, setting: Setting) -> None:
@@ -128,7 +131,7 @@ class SB3Learner(Learner):
 
     def train_step(self, env: Episodes, fraction: float) -> Step:
         """Not here: an sb3 run trains through :func:`train`."""
-        raise RunError("an sb3 run trains through mitlc.learn.sb3.train")
+        raise RunError("an sb3 run trains through mitlc.learn.backends.sb3.train")
 
     @property
     def epsilon(self) -> float:

@@ -5,7 +5,8 @@ a target network (Mnih et al., Nature 2015) and optionally Double DQN (van Hasse
 Silver, AAAI 2016).
 
 Each step the network reads what the agent sees (the observation, the automaton state, the
-frontier mask and the previous action, see :class:`mitlc.learn.nets.Encoder`) through a GRU or
+frontier mask and the previous action, see :class:`mitlc.learn.learners.nets.Encoder`) through a
+GRU or
 LSTM whose state carries the episode's history; it restarts from zero when an episode ends.
 Each episode's stream is cut into segments of ``sequence_length`` transitions; a segment is
 stored with the ``burn_in`` inputs before it and the recurrent state the actor had at the first
@@ -25,9 +26,17 @@ import numpy as np
 import torch
 from torch import nn
 
-from mitlc.learn.base import Episodes, Learner, Policy, epsilon_at, learning_signal, random_valid
 from mitlc.learn.config import DRQNConfig, TrainConfig
-from mitlc.learn.nets import (
+from mitlc.learn.envs.vec import Step, Tables
+from mitlc.learn.learners.base import (
+    Episodes,
+    Learner,
+    Policy,
+    epsilon_at,
+    learning_signal,
+    random_valid,
+)
+from mitlc.learn.learners.nets import (
     Encoder,
     Ring,
     anneal,
@@ -44,7 +53,6 @@ from mitlc.learn.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.learn.vec import Step, Tables
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
@@ -100,7 +108,7 @@ class Streams:
         observation: tuple[tuple[int, ...], Any] = ((), np.int64),
     ) -> None:
         """``observation``: the shape and dtype of one observation (an id, or a Box's values:
-        :attr:`mitlc.learn.nets.Encoder.observation_field`)."""
+        :attr:`mitlc.learn.learners.nets.Encoder.observation_field`)."""
         self.length = np.zeros(num_envs, dtype=np.int64)
         self.rows = np.arange(num_envs)
         inputs, steps = (num_envs, longest + 1), (num_envs, longest)

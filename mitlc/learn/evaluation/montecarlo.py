@@ -10,11 +10,12 @@ run many episodes.) The success rate comes with its 95% Wilson score interval (W
 1927) and the mean return of the same episodes.
 
 The slots come in batches of at most ``width`` from ``batches(count, first)``, a fresh batch
-whose slot ``i`` is episode ``first + i``: any :class:`mitlc.learn.base.Episodes`, the common
-interface of mitlc's simulator of a finite product (:class:`mitlc.learn.vec.VecProduct`,
+whose slot ``i`` is episode ``first + i``: any :class:`mitlc.learn.learners.base.Episodes`, the
+common
+interface of mitlc's simulator of a finite product (:class:`mitlc.learn.envs.vec.VecProduct`,
 :func:`mitlc.learn.setting.batches`) and of a vector of task-wrapped gymnasium envs
-(:class:`mitlc.learn.envvec.VectorTask`, the same function); each
-steps all its slots at once and reports a :class:`mitlc.learn.vec.Step` (``done``,
+(:class:`mitlc.learn.envs.envvec.VectorTask`, the same function); each
+steps all its slots at once and reports a :class:`mitlc.learn.envs.vec.Step` (``done``,
 ``success``, ``episode_return``) describing the episodes *before* ended ones restart.
 """
 
@@ -26,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from mitlc.learn.base import Episodes, Policy
+from mitlc.learn.learners.base import Episodes, Policy
 from mitlc.worlds.model import BoolArray, FloatArray
 
 Z95 = 1.959963984540054

@@ -1,18 +1,18 @@
 """Tabular Q-learning on any wrapped env with a discrete observation
-(:class:`mitlc.learn.envvec.VectorTask`): the table is indexed by ``(frontier, observation,
+(:class:`mitlc.learn.envs.envvec.VectorTask`): the table is indexed by ``(frontier, observation,
 automaton state)`` in place of the product's states, and the valid actions are the wrapper's
-masks. The update is :class:`mitlc.learn.qlearning.QLearner`'s (Watkins and Dayan, 1992),
+masks. The update is :class:`mitlc.learn.learners.qlearning.QLearner`'s (Watkins and Dayan, 1992),
 the one definition of it."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mitlc.learn.base import Episodes, Policy, epsilon_at, masked_argmax, random_valid
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.crm import Batch
-from mitlc.learn.qlearning import QLearner
-from mitlc.learn.vec import Step
+from mitlc.learn.envs.vec import Step
+from mitlc.learn.learners.base import Episodes, Policy, epsilon_at, masked_argmax, random_valid
+from mitlc.learn.learners.crm import Batch
+from mitlc.learn.learners.qlearning import QLearner
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 

@@ -1,6 +1,6 @@
 """Checkpoints that hold data only: ``save(directory, steps, state)`` and ``load(directory)``.
 
-A checkpoint is the nested state the learners, :class:`~mitlc.learn.vec.VecProduct` and the
+A checkpoint is the nested state the learners, :class:`~mitlc.learn.envs.vec.VecProduct` and the
 run's tally produce (dicts, lists, tuples, numbers, strings, numpy arrays, torch tensors),
 stored in up to three files named by the run's environment steps, as Stable-Baselines3 names
 its checkpoints:
@@ -16,7 +16,7 @@ its checkpoints:
 ``checkpoint.json``, written last and atomically, names the latest checkpoint and the SHA-256
 of each of its files; :func:`load` checks them before parsing anything. Older checkpoints
 beyond ``keep`` are deleted. No file is ever unpickled: a run directory with only the old
-``checkpoint.pkl`` is refused. :mod:`mitlc.learn.state` checks a loaded state against fresh
+``checkpoint.pkl`` is refused. :mod:`mitlc.learn.rundir.state` checks a loaded state against fresh
 objects before anything is restored from it.
 """
 
@@ -36,7 +36,7 @@ import numpy as np
 from numpy.lib import format as npy
 
 from mitlc.files import write_atomically
-from mitlc.learn.rundir import RunError, decode, parse_json, read_bytes, read_text
+from mitlc.learn.rundir.files import RunError, decode, parse_json, read_bytes, read_text
 
 INDEX, LEGACY = "checkpoint.json", "checkpoint.pkl"
 FORMAT, INDEX_FORMAT = "mitlc.checkpoint/1", "mitlc.checkpoint-index/1"

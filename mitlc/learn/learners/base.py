@@ -10,12 +10,12 @@ import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.learn.config import Discount, TrainConfig
-from mitlc.learn.vec import Step, Tables
+from mitlc.learn.envs.vec import Step, Tables
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
 class Episodes(Protocol):
-    """A batch of episodes as the learners read it: :class:`mitlc.learn.envvec.VectorTask`
+    """A batch of episodes as the learners read it: :class:`mitlc.learn.envs.envvec.VectorTask`
     over any vector env of wrapped envs (mitlc's simulator of a finite product included).
     ``state`` is the product state (-1 without a finite product)."""
 
