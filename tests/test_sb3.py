@@ -212,7 +212,7 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     what ``predict(obs, deterministic=True)`` chooses on the wrapper's flat observation."""
     import tests.open_envs  # noqa: F401 - registers MitlcTest/DictChain-v0
     from mitlc.learn.envs.envvec import task_vector
-    from mitlc.learn.learners.open_world import open_env
+    from mitlc.product.worlds import task_env
     from mitlc.learn.run import load_learner
     from tests.test_env_task import DICT_CHAIN
     from tests.test_envvec import CORRIDOR
@@ -230,8 +230,8 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     assert runner.invoke(app, ["plot", str(out)]).exit_code == 0
     setting, learner = load_learner(out)
     policy = learner.policy()
-    flat = [open_env(setting, flatten=True) for _ in range(3)]
-    view = task_vector([open_env(setting) for _ in range(3)], seed=7)
+    flat = [task_env(setting.world, setting.automaton, flatten=True) for _ in range(3)]
+    view = task_vector([task_env(setting.world, setting.automaton) for _ in range(3)], seed=7)
     observations = [env.reset(seed=7 + i)[0] for i, env in enumerate(flat)]
     rng = np.random.default_rng(0)
     for _ in range(30):

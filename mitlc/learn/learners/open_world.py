@@ -1,6 +1,5 @@
 """The learners of a world that is not finite: a continuous world (``plane:``) or a gymnasium
-env without a transition table (``env:``, :mod:`mitlc.worlds.env_task`), and its greedy
-rollouts for plots.
+env without a transition table (``env:``, :mod:`mitlc.worlds.env_task`).
 
 There is no product: the learner steps a :class:`mitlc.learn.envs.envvec.VectorTask` of the world's
 wrapped envs (:func:`mitlc.learn.setting.task_vector_of`): DQN or the recurrent DQN on any
@@ -23,7 +22,7 @@ from typing import cast
 import numpy as np
 from gymnasium.spaces import Discrete
 
-from mitlc.learn.learners.base import Learner, Policy
+from mitlc.learn.learners.base import Learner
 from mitlc.learn.rundir.files import RunError
 from mitlc.learn.setting import Setting, task_vector_of
 
@@ -79,24 +78,3 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     from mitlc.learn.learners.dqn import DQNLearner
 
     return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
-
-
-def rollouts_plane(
-    setting: Setting, policy: Policy, count: int, seed: int
-) -> list[tuple[list[tuple[float, float]], bool]]:
-    """``count`` greedy trajectories (positions) and whether each succeeded."""
-    drawn = []
-    for k in range(count):
-        vector = task_vector_of(setting, 1, seed + k)
-        policy.reset(1)
-        x, y = vector.envs[0].unwrapped.position
-        path = [(float(x), float(y))]
-        while True:
-            step = vector.step(policy.act(vector))
-            policy.observe(step)
-            x, y = vector.reached("position")[0]
-            path.append((float(x), float(y)))
-            if step.done[0]:
-                drawn.append((path, bool(step.success[0])))
-                break
-    return drawn

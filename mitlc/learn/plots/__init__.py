@@ -35,7 +35,7 @@ from mitlc.learn.plots.common import (
     read_metrics,
 )
 from mitlc.learn.plots.grid import GRID_SIZE, trajectory_figure
-from mitlc.learn.plots.plane import plane_figure
+from mitlc.learn.plots.plane import plane_figure, rollouts_plane
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, read_config
 from mitlc.syntax import parse
@@ -88,8 +88,6 @@ def _trajectories(
     algo = setting.config.algo
     world = setting.world
     if isinstance(world, PlaneWorld):
-        from mitlc.learn.learners.open_world import rollouts_plane
-
         paths = rollouts_plane(setting, policy, count, seed)
         wins = sum(success for _, success in paths)
         title = (

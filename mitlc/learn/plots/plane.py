@@ -18,6 +18,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 
+from mitlc.learn.learners.base import Policy
+from mitlc.learn.setting import Setting, task_vector_of
 from mitlc.worlds.plane import Box, PlaneWorld, Region
 
 DPI = 100
@@ -137,3 +139,24 @@ def plane_figure(
     _legend(axes, world, trajectories)
     figure.suptitle(title, fontsize=12, x=0.03, ha="left")
     return figure
+
+
+def rollouts_plane(
+    setting: Setting, policy: Policy, count: int, seed: int
+) -> list[tuple[list[tuple[float, float]], bool]]:
+    """``count`` greedy trajectories (positions) and whether each succeeded."""
+    drawn = []
+    for k in range(count):
+        vector = task_vector_of(setting, 1, seed + k)
+        policy.reset(1)
+        x, y = vector.envs[0].unwrapped.position
+        path = [(float(x), float(y))]
+        while True:
+            step = vector.step(policy.act(vector))
+            policy.observe(step)
+            x, y = vector.reached("position")[0]
+            path.append((float(x), float(y)))
+            if step.done[0]:
+                drawn.append((path, bool(step.success[0])))
+                break
+    return drawn
