@@ -62,16 +62,16 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping
-from typing import Any, Literal, cast
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
-import numpy.typing as npt
 from gymnasium import spaces
 from gymnasium.utils import RecordConstructorArgs
 
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.errors import MitlcError
+from mitlc.gym.parts import TaskObservation, data_only, time_limit
 from mitlc.labels import LabelFunction, Labels, as_labels, letter_reader
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
@@ -154,7 +154,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._read = letter_reader(self.labels, automaton.propositions)
         self.horizon, self.reward_mode, self.flatten = horizon, reward_mode, flatten
         self._cut_warned = False
-        limit = _time_limit(env)
+        limit = time_limit(env)
         if limit is not None and limit < horizon:
             self._warn_cut(
                 f"the env's own time limit ({limit} steps) ends episodes before the task's "
@@ -222,25 +222,13 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._masks: dict[int, BoolArray] = {}
 
     def _observation_spaces(self, space: spaces.Space[Any]) -> None:
-        self._env_space = space
-        if not self.flatten:
-            self.observation_space = spaces.Dict(
-                {
-                    self._env_key: space,
-                    "automaton": spaces.Discrete(self.num_q),
-                    "frontier": spaces.Discrete(1 << self._num_sets),
-                }
+        try:
+            self._view = TaskObservation.of(
+                space, self._env_key, self.num_q, self._num_sets, self.flatten
             )
-            return
-        flat = spaces.flatten_space(space)
-        if not isinstance(flat, spaces.Box):
-            raise TaskWrapperError(f"flatten: the env's observation space {space} is not flat")
-        self._env_dim = int(np.prod(flat.shape))
-        task = self.num_q + self._num_sets
-        self._flat_size = self._env_dim + task
-        low = np.concatenate([flat.low.reshape(-1), np.zeros(task)]).astype(np.float32)
-        high = np.concatenate([flat.high.reshape(-1), np.ones(task)]).astype(np.float32)
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        except ValueError as err:
+            raise TaskWrapperError(f"flatten: {err}") from None
+        self.observation_space = self._view.space
 
     # -- state ---------------------------------------------------------------------------------
 
@@ -302,7 +290,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             "done": self._done,
             "env_ended": self._ended,
             "env_obs": self._env_obs,
-            "env_info": _data_only(self._env_info),
+            "env_info": data_only(self._env_info),
             "env": own,
         }
 
@@ -385,10 +373,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["accepting"] = new > 0
         if self._discrete:
             info["action_mask"] = self.masks_of(q).copy()
-        if self.flatten:
-            return self._flat(obs, state), reward, terminated, truncated, info
-        observation = {self._env_key: obs, "automaton": q, "frontier": frontier}
-        return observation, reward, terminated, truncated, info
+        return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         out = self.monitor.jump(self._state, j)
@@ -430,24 +415,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return tuple(k for k in range(self._num_sets) if marks >> k & 1)
 
     def _observation(self, obs: Any, state: MonitorState) -> Any:
-        if self.flatten:
-            return self._flat(obs, state)
-        return {self._env_key: obs, "automaton": state.q, "frontier": state.frontier}
-
-    def _flat(self, obs: Any, state: MonitorState) -> Any:
-        flat = np.zeros(self._flat_size, dtype=np.float32)
-        dim = self._env_dim
-        space = self._env_space
-        if type(space) is spaces.Discrete:  # gymnasium's flatten: a one-hot (done here, fast)
-            flat[int(obs) - int(space.start)] = 1.0
-        else:
-            flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(space, obs))
-        flat[dim + state.q] = 1.0
-        base = dim + self.num_q
-        for k in range(self._num_sets):
-            if state.frontier >> k & 1:
-                flat[base + k] = 1.0
-        return flat
+        return self._view.observe(obs, state.q, state.frontier)
 
     def _info(
         self,
@@ -474,58 +442,3 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._discrete:
             info["action_mask"] = self.masks_of(state.q).copy()
         return info
-
-
-def _data_only(value: Any) -> Any:
-    """``value`` with only what a checkpoint holds (numbers, strings, ``None``, numpy arrays of
-    numbers, and lists, tuples and string-keyed dicts of them); anything else is left out
-    (:data:`_LEFT_OUT` at the top)."""
-    if value is None or isinstance(value, bool | int | float | str | np.generic):
-        return value
-    if isinstance(value, np.ndarray):
-        return _LEFT_OUT if value.dtype.hasobject else value
-    if isinstance(value, list | tuple):
-        items = [_data_only(v) for v in value]
-        return _LEFT_OUT if any(v is _LEFT_OUT for v in items) else type(value)(items)
-    if isinstance(value, dict):
-        kept = {k: _data_only(v) for k, v in value.items() if isinstance(k, str)}
-        return {k: v for k, v in kept.items() if v is not _LEFT_OUT and not k.startswith("__")}
-    return _LEFT_OUT
-
-
-_LEFT_OUT = object()
-
-
-def _time_limit(env: gym.Env[Any, Any]) -> int | None:
-    """The smallest ``TimeLimit`` among ``env``'s wrappers (read from the wrappers themselves:
-    asking for ``env.spec`` would cache it before ``gymnasium.make`` sets the whole's)."""
-    limits = []
-    while isinstance(env, gym.Wrapper):
-        if isinstance(env, gym.wrappers.TimeLimit):
-            limits.append(int(env._max_episode_steps))
-        env = env.env
-    return min(limits, default=None)
-
-
-def make_task_env(
-    *,
-    env_id: str,
-    spec: str | TaskAutomaton,
-    labels: Labels | LabelFunction | Mapping[str, Any],
-    horizon: int,
-    env_kwargs: Mapping[str, Any] | None = None,
-    render_mode: str | None = None,
-    **options: Any,
-) -> TaskWrapper:
-    """The entry point of :data:`ENV_ID`: ``gymnasium.make(env_id, **env_kwargs)`` wrapped in a
-    :class:`TaskWrapper` (``options`` are its keywords: rewards, reward_mode, flatten, ...)."""
-    kwargs = dict(env_kwargs or {})
-    if render_mode is not None:
-        kwargs["render_mode"] = render_mode
-    wrapper = TaskWrapper(gym.make(env_id, **kwargs), spec, labels, horizon=horizon, **options)
-    wrapper._spec_is_inner = True
-    return wrapper
-
-
-if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="mitlc.gym.wrapper:make_task_env")

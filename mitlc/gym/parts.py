@@ -1,0 +1,103 @@
+"""The task wrapper's parts that are not the task's rules: its observation
+(:class:`TaskObservation`), the env's ``info`` as data a checkpoint holds (:func:`data_only`),
+and the env's own time limit (:func:`time_limit`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, cast
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium import spaces
+
+
+@dataclass(frozen=True, slots=True)
+class TaskObservation:
+    """The wrapper's observation of the env's observation, the automaton state and the
+    frontier: a ``Dict`` of the three (the env's part named ``env_key``), or with ``flatten``
+    one float32 ``Box``: the env's observation flattened (``gymnasium.spaces.flatten``), a
+    one-hot of the automaton state and the ``num_sets`` frontier bits."""
+
+    env_space: spaces.Space[Any]
+    env_key: str
+    num_q: int
+    num_sets: int
+    flatten: bool
+    space: spaces.Space[Any]
+    env_dim: int = 0
+
+    @staticmethod
+    def of(
+        env_space: spaces.Space[Any], env_key: str, num_q: int, num_sets: int, flatten: bool
+    ) -> TaskObservation:
+        """The observation of an env with ``env_space`` (a ``ValueError`` when it cannot be
+        flattened as asked)."""
+        if not flatten:
+            space = spaces.Dict(
+                {
+                    env_key: env_space,
+                    "automaton": spaces.Discrete(num_q),
+                    "frontier": spaces.Discrete(1 << num_sets),
+                }
+            )
+            return TaskObservation(env_space, env_key, num_q, num_sets, False, space)
+        flat = spaces.flatten_space(env_space)
+        if not isinstance(flat, spaces.Box):
+            raise ValueError(f"the env's observation space {env_space} is not flat")
+        dim = int(np.prod(flat.shape))
+        task = num_q + num_sets
+        low = np.concatenate([flat.low.reshape(-1), np.zeros(task)]).astype(np.float32)
+        high = np.concatenate([flat.high.reshape(-1), np.ones(task)]).astype(np.float32)
+        box = spaces.Box(low, high, dtype=np.float32)
+        return TaskObservation(env_space, env_key, num_q, num_sets, True, box, dim)
+
+    def observe(self, obs: Any, q: int, frontier: int) -> Any:
+        """The observation of the env's ``obs`` in automaton state ``q`` with ``frontier``."""
+        if not self.flatten:
+            return {self.env_key: obs, "automaton": q, "frontier": frontier}
+        dim = self.env_dim
+        flat = np.zeros(dim + self.num_q + self.num_sets, dtype=np.float32)
+        space = self.env_space
+        if type(space) is spaces.Discrete:  # gymnasium's flatten: a one-hot (done here, fast)
+            flat[int(obs) - int(space.start)] = 1.0
+        else:
+            flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(space, obs))
+        flat[dim + q] = 1.0
+        base = dim + self.num_q
+        for k in range(self.num_sets):
+            if frontier >> k & 1:
+                flat[base + k] = 1.0
+        return flat
+
+
+def data_only(value: Any) -> Any:
+    """``value`` with only what a checkpoint holds (numbers, strings, ``None``, numpy arrays of
+    numbers, and lists, tuples and string-keyed dicts of them); anything else is left out
+    (:data:`_LEFT_OUT` at the top)."""
+    if value is None or isinstance(value, bool | int | float | str | np.generic):
+        return value
+    if isinstance(value, np.ndarray):
+        return _LEFT_OUT if value.dtype.hasobject else value
+    if isinstance(value, list | tuple):
+        items = [data_only(v) for v in value]
+        return _LEFT_OUT if any(v is _LEFT_OUT for v in items) else type(value)(items)
+    if isinstance(value, dict):
+        kept = {k: data_only(v) for k, v in value.items() if isinstance(k, str)}
+        return {k: v for k, v in kept.items() if v is not _LEFT_OUT and not k.startswith("__")}
+    return _LEFT_OUT
+
+
+_LEFT_OUT = object()
+
+
+def time_limit(env: gym.Env[Any, Any]) -> int | None:
+    """The smallest ``TimeLimit`` among ``env``'s wrappers (read from the wrappers themselves:
+    asking for ``env.spec`` would cache it before ``gymnasium.make`` sets the whole's)."""
+    limits = []
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, gym.wrappers.TimeLimit):
+            limits.append(int(env._max_episode_steps))
+        env = env.env
+    return min(limits, default=None)
