@@ -38,6 +38,10 @@ from mitlc.worlds.gym_world import EnvWorldFile, build_world
 from mitlc.worlds.model import IntArray, World
 from tests.strategies import horizon as depth_oracle
 from tests.strategies import random_formula, random_trace
+from tests.test_semantics_rtamt import _parse_rtamt, _rtamt_robustness, _to_rtamt
+
+RTAMT_CHECKS = 80
+"""Of the random (formula, trace) pairs, how many are also given to rtamt itself."""
 
 Step = tuple[float, str, bool, bool, bool]
 """(reward, verdict, terminated, truncated, success) of one step."""
@@ -294,6 +298,9 @@ def test_success_is_the_finite_trace_semantics_of_the_letters_read() -> None:
             # success: the value on the letters read (a decided task's verdict agrees with it)
             expected = evaluate_finite(formula, trace[:read])[0]
             assert info["success"] == expected, (to_text(formula), trace[:read])
+            if checked < RTAMT_CHECKS:  # and rtamt's, directly, on the first of them
+                spec = _parse_rtamt(_to_rtamt(formula))
+                assert (_rtamt_robustness(spec, trace[:read])[0] > 0) == info["success"]
             if truncated:
                 assert read == horizon and info["verdict"] == "pending"
             checked += 1
@@ -475,3 +482,46 @@ def test_a_safety_task_pending_at_the_horizon_is_truncated_on_every_path() -> No
     (in_sim,) = simulator_episodes(world, product, policy, 1, 0)
     in_env = [(r, i["verdict"], te, tr, i["success"]) for _, r, te, tr, i in results]
     assert in_sim == in_env
+
+
+class Located(gym.Env[int, int]):
+    """A two-cell env whose ``info`` carries its position as an array, as a plane world's."""
+
+    def __init__(self) -> None:
+        self.observation_space = spaces.Discrete(2)
+        self.action_space = spaces.Discrete(2)
+        self.cell = 0
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[int, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.cell = 0
+        return 0, self._info()
+
+    def step(self, action: int) -> tuple[int, float, bool, bool, dict[str, Any]]:
+        self.cell = int(action)
+        return self.cell, 0.0, False, False, self._info()
+
+    def _info(self) -> dict[str, Any]:
+        return {"position": np.array([0.5 + self.cell, 2.0]), "cell": self.cell, "raw": object()}
+
+
+def test_a_resumed_wrapper_keeps_the_envs_last_info(tmp_path: Any) -> None:
+    """After ``load_state_dict`` (through a data-only checkpoint) an invalid jump's ``info``
+    still has the env's last entries; what a checkpoint cannot hold is left out."""
+    from mitlc.learn.rundir import checkpoint
+
+    labels = {"a": {"obs": [1]}}
+    env = TaskWrapper(Located(), "F G a", labels, horizon=10)
+    env.reset(seed=0)
+    env.step(1)
+    env.step(2)  # the first jump, into the accepting part, which has none
+    checkpoint.save(tmp_path, 1, {"env": env.state_dict()})
+    fresh = TaskWrapper(Located(), "F G a", labels, horizon=10)
+    fresh.reset(seed=0)
+    fresh.load_state_dict(checkpoint.load(tmp_path).state["env"])
+    invalid = int(np.flatnonzero(~fresh.action_masks())[0])
+    _, _, _, _, info = fresh.step(invalid)
+    assert info["invalid_action"] and info["cell"] == 1 and "raw" not in info
+    assert np.array_equal(info["position"], [1.5, 2.0])
