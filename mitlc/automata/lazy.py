@@ -28,6 +28,13 @@ Two facts make that possible and exact.
   dead. Each state is searched once; decided states stay decided. A dead state costs its
   whole forward closure (as in the eager translation); a live one often a handful of states.
 
+Both automata read one definition of their states, :class:`mitlc.automata.keys.Rules`, whose
+keys hold :func:`mitlc.automata.keys.tidy` forms: the store's normal forms depend on the order
+in which they were made, which follows the order of discovery (breadth-first in the eager
+translation, by need here), and a tidy form does not, so both reach the same keys. Jumps are listed in the
+order of :meth:`mitlc.automata.keys.Rules.jumps` (that of the guesses) in both, so a product or
+a gym wrapper built on either numbers a state's jump actions alike.
+
 A successor that is dead is the one sink (verdict ``violated``, marks 0, a self-loop), as in the
 eager automaton; the transition into it keeps the marks of the original step, as eager does.
 State ids count the live states and the sink handed out so far, in order of first creation.
@@ -40,6 +47,7 @@ from dataclasses import dataclass, field
 from mitlc.automata.digital import Component, DigitalState, Verdict
 from mitlc.automata.keys import SINK, Key, Rules, Transitions
 from mitlc.automata.ldba import state_limit_error
+from mitlc.automata.terms import TermStore
 from mitlc.limits import Deadline, collector_paused
 from mitlc.syntax import ast, to_text
 
@@ -283,7 +291,8 @@ class LazyAutomaton:
 
     def jumps(self, state: int) -> tuple[int, ...]:
         """The targets of the epsilon jumps from ``state`` into live states, in the order of
-        :func:`mitlc.automata.accepting.guesses`."""
+        :meth:`mitlc.automata.keys.Rules.jumps` (the guesses'), as
+        :meth:`mitlc.automata.digital.DigitalAutomaton.jumps` of a translation lists them."""
         found = self._jumps.get(state)
         if found is None:
             node, graph = self._nodes[state], self._graph
@@ -310,6 +319,11 @@ class LazyAutomaton:
     def component(self, state: int) -> Component:
         """``initial`` or ``accepting``: the component of ``state``."""
         return self._state(state).component
+
+    @property
+    def store(self) -> TermStore:
+        """The term store of the keys (:meth:`key`)."""
+        return self._graph.rules.store
 
     def key(self, state: int) -> Key:
         """The normal forms behind ``state`` (:data:`mitlc.automata.keys.SINK` for the sink)."""
