@@ -223,6 +223,11 @@ class DigitalAutomaton:
     num_sets: int
     epsilon: tuple[tuple[int, int], ...] = ()
     """Epsilon jumps ``(source, target)``, sorted, from the initial to the accepting component."""
+    jump_order: tuple[tuple[int, ...], ...] = field(default=(), compare=False, repr=False)
+    """``jump_order[s]``: the targets of the jumps of ``s`` (those of ``epsilon``) in the order
+    :meth:`jumps` gives them, that of :func:`mitlc.automata.accepting.guesses` for a
+    translation (:meth:`mitlc.automata.keys.Rules.jumps`); empty: by target. Not part of the
+    artifact, which lists ``epsilon``."""
     _table: dict[str, tuple[tuple[tuple[int, ...], ...], ...]] = field(
         default_factory=dict, compare=False, repr=False
     )
@@ -311,8 +316,10 @@ class DigitalAutomaton:
         return self.states[state].verdict
 
     def jumps(self, state: int) -> tuple[int, ...]:
-        """The targets of the epsilon jumps leaving ``state``, by target."""
-        return self.jumps_from(state)
+        """The targets of the epsilon jumps leaving ``state``, in the order of ``jump_order``
+        (a translation's: that of the guesses, as the lazy automaton's), else by target. A
+        jump's action number in a product or a gym wrapper is its place here."""
+        return self.jump_order[state] if self.jump_order else self.jumps_from(state)
 
     def end(self, state: int) -> bool:
         """Whether a trace that stops in ``state`` satisfies the formula

@@ -218,8 +218,23 @@ class _Builder:
             rows=tuple(rows),
             num_sets=rules.num_sets,
             epsilon=tuple(epsilon),
+            jump_order=_jump_order(explored.epsilon, order, new_id, len(states)) if epsilon else (),
         )
         return Translation(automaton, rules.store, tuple(new_keys))
+
+
+def _jump_order(
+    epsilon: Sequence[tuple[int, int]], order: Sequence[int], new_id: dict[int, int], size: int
+) -> tuple[tuple[int, ...], ...]:
+    """Per state of the automaton (``size`` of them: the live ones in ``order``, then the
+    sink), the new ids of its live jump targets in the order they were explored: that of
+    :meth:`Rules.jumps` (the guesses), which the lazy automaton keeps too."""
+    found: dict[int, list[int]] = {}
+    for s, t in epsilon:
+        if s in new_id and t in new_id:
+            found.setdefault(s, []).append(new_id[t])
+    listed = [tuple(found.get(old, ())) for old in order]
+    return tuple(listed + [()] * (size - len(listed)))
 
 
 def _bfs_order(
