@@ -18,7 +18,8 @@ from functools import cache
 import pytest
 
 from mitlc.automata.digital import DigitalAutomaton
-from mitlc.automata.keys import Key, Rules
+from mitlc.automata.ends import end_value
+from mitlc.automata.keys import Key, Rules, tidy
 from mitlc.automata.lazy import LazyAutomaton
 from mitlc.automata.ldba import (
     StateLimitError,
@@ -29,7 +30,7 @@ from mitlc.automata.ldba import (
 )
 from mitlc.automata.normalize import normalize
 from mitlc.automata.runs import run_states
-from mitlc.automata.terms import LIT, RELEASE, UNTIL, TermStore
+from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, LIT, RELEASE, UNTIL, TermStore
 from mitlc.semantics import Lasso, holds_lasso
 from mitlc.syntax import ast, parse
 from mitlc.syntax.parser import read_spec
@@ -267,6 +268,26 @@ def test_jumps_follow_the_guesses_not_the_numbering() -> None:
             unsorted += expected != sorted(expected)
         assert list(eager.epsilon) == sorted(eager.epsilon)
     assert unsorted > 0
+
+
+def test_tidy_drops_leftovers_only() -> None:
+    """Either order of multiplying out ``(z | w) & (z | F[0,2] b) & F[0,3] b`` gives one tidy
+    form; disjoint disjuncts stay, and so does a delay beside a window (the end values of
+    ``F[2,2] G a`` and ``F[1,3] G a`` differ)."""
+    store = TermStore(("a", "b", "w", "z"))
+    a, b, w, z = (store.literal(i, True) for i in range(4))
+    early, late = store.temporal(EVENTUALLY, 0, 2, b), store.temporal(EVENTUALLY, 0, 3, b)
+    absorbed = store.and_(store.and_(store.or_(z, w), store.or_(z, early)), late)
+    kept = store.and_(store.or_(z, w), store.and_(store.or_(z, early), late))
+    assert absorbed != kept
+    assert tidy(store, kept) == tidy(store, absorbed) == absorbed
+    disjoint = store.or_(store.temporal(ALWAYS, 0, 5, a), store.temporal(ALWAYS, 0, 4, a))
+    assert tidy(store, disjoint) == disjoint
+    always_a = store.temporal(ALWAYS, 0, INF, a)
+    delay, window = store.delay(2, always_a), store.temporal(EVENTUALLY, 1, 3, always_a)
+    shared = store.temporal(ALWAYS, 0, INF, b)
+    ends = store.or_(store.and_(shared, delay), store.and_(shared, window))
+    assert tidy(store, ends) == ends and end_value(store, ends)
 
 
 def test_random_formulas_agree() -> None:
