@@ -278,7 +278,11 @@ def tidy(store: TermStore, form: int) -> int:
     cubes = store.forms[form]
     if len(cubes) < 2 or not _has_implied_atom(store, cubes):
         return form
-    kept = [c for c in cubes if not any(_leftover(store, c, d) for d in cubes if d is not c)]
+    holders: dict[int, list[frozenset[int]]] = {}  # atom -> the cubes holding it
+    for cube in cubes:
+        for atom in cube:
+            holders.setdefault(atom, []).append(cube)
+    kept = [c for c in cubes if not any(_implies(store, c, d) for d in _sharing(c, holders))]
     return form if len(kept) == len(cubes) else store.form(frozenset(kept))
 
 
@@ -306,9 +310,13 @@ def _has_implied_atom(store: TermStore, cubes: frozenset[frozenset[int]]) -> boo
     return False
 
 
-def _leftover(store: TermStore, cube: frozenset[int], other: frozenset[int]) -> bool:
-    """Whether ``cube`` shares an atom with ``other`` and implies it: every atom of ``other``
-    is in ``cube`` or implied by one of its atoms."""
-    if cube.isdisjoint(other):
-        return False
+def _sharing(cube: frozenset[int], holders: dict[int, list[frozenset[int]]]) -> set[frozenset[int]]:
+    """The other cubes that share an atom with ``cube``."""
+    found = {other for atom in cube for other in holders[atom]}
+    found.discard(cube)
+    return found
+
+
+def _implies(store: TermStore, cube: frozenset[int], other: frozenset[int]) -> bool:
+    """Whether every atom of ``other`` is in ``cube`` or implied by one of its atoms."""
     return all(b in cube or any(implies_at_the_end(store, a, b) for a in cube) for b in other)
