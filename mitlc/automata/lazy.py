@@ -31,9 +31,9 @@ Two facts make that possible and exact.
 Both automata read one definition of their states, :class:`mitlc.automata.keys.Rules`, whose
 keys hold :func:`mitlc.automata.keys.tidy` forms: the store's normal forms depend on the order
 in which they were made, which follows the order of discovery (breadth-first in the eager
-translation, by need here), and a tidy form does not, so both reach the same keys. Jumps are listed in the
-order of :meth:`mitlc.automata.keys.Rules.jumps` (that of the guesses) in both, so a product or
-a gym wrapper built on either numbers a state's jump actions alike.
+translation, by need here), and tidy ones do not, so both reach the same keys. Jumps are
+listed in the order of :meth:`mitlc.automata.keys.Rules.jumps` (that of the guesses) in both,
+so a product or a gym wrapper built on either numbers a state's jump actions alike.
 
 A successor that is dead is the one sink (verdict ``violated``, marks 0, a self-loop), as in the
 eager automaton; the transition into it keeps the marks of the original step, as eager does.
