@@ -212,8 +212,8 @@ def test_an_sb3_run_on_a_world_that_is_not_finite_acts_as_sb3_predicts(
     what ``predict(obs, deterministic=True)`` chooses on the wrapper's flat observation."""
     import tests.open_envs  # noqa: F401 - registers MitlcTest/DictChain-v0
     from mitlc.learn.envs.envvec import task_vector
-    from mitlc.product.worlds import task_env
     from mitlc.learn.run import load_learner
+    from mitlc.product.worlds import task_env
     from tests.test_env_task import DICT_CHAIN
     from tests.test_envvec import CORRIDOR
 
