@@ -15,11 +15,11 @@ cell, before the first action).
   acceptance sets seen in the current round, as one integer in ``Discrete(2 ** num_sets)``.
 * **Actions**: ``Discrete(num_actions + max_jumps)``. Action ``a < num_actions`` is a world
   action: ``s'`` is drawn from the world's row ``s * num_actions + a``, the automaton reads the
-  letter of ``s``. Action ``num_actions + j`` takes the ``j``-th epsilon jump of ``q`` (jumps
-  sorted by target): the automaton moves, the world does not, no time passes (the step counter
-  and the horizon are untouched, as in :func:`mitlc.check.solve.pmax_horizon`) and the
-  observation is unchanged. A jump that ``q`` does not have is *invalid*: world and automaton
-  stay as they are, the reward is 0, ``info["invalid_action"]`` is True, and it costs a step of
+  letter of ``s``. Action ``num_actions + j`` takes the ``j``-th epsilon jump of ``q`` (in the
+  order of the automaton's ``jumps(q)``): the automaton moves, the world does not, no time
+  passes (the step counter and the horizon are untouched, as in
+  :func:`mitlc.check.solve.pmax_horizon`) and the observation is unchanged. A jump that ``q``
+  does not have is *invalid*: world and automaton stay as they are, the reward is 0, ``info["invalid_action"]`` is True, and it costs a step of
   the episode's budget, so an agent that ignores the mask still ends every episode by the
   horizon; :meth:`ProductEnv.action_masks` gives the valid actions (sb3-contrib's
   ``MaskablePPO`` convention).

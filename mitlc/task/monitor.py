@@ -264,13 +264,6 @@ class TaskMonitor:
         found: BoolArray = self._end_array[q]
         return found
 
-    def successes(self, q: IntArray, rounds: IntArray) -> BoolArray:
-        """:meth:`success` for a batch of runs stopping in ``q`` after ``rounds`` rounds."""
-        if len(q) and int(q.max()) >= len(self._verdicts):
-            self._learn_states(int(q.max()))
-        found: BoolArray = self._success_array.take(q * 2 + (rounds > 0))
-        return found
-
     def read_batch(
         self, q: IntArray, frontier: IntArray, rounds: IntArray, letters: IntArray
     ) -> BatchOutcome:

@@ -5,14 +5,14 @@ The learners' simulator. It reads the transition tables of the explicit product
 follows the conventions of :class:`mitlc.product.env.ProductEnv` (the gymnasium environment):
 
 * actions ``0 .. A-1`` are the world's, ``A + j`` the ``j``-th epsilon jump of the automaton
-  state (by target); a jump takes no time. :attr:`Tables.valid` masks the jumps a state lacks
-  (learners never choose them);
+  state (in the order of its ``jumps``, as the task wrapper's); a jump takes no time.
+  :attr:`Tables.valid` masks the jumps a state lacks (learners never choose them);
 * rewards: ``accept`` for each acceptance set new in the current round (a generalized Büchi
   frontier, emptied when every set has been seen), ``satisfied`` / ``violated`` on entering those
   states, ``move`` for each world action other than ``stay``;
 * an episode ends when it enters *satisfied* or *violated* (terminated) or after ``horizon``
-  world actions (truncated); it is a **success** when it never reached *violated* and reached
-  *satisfied* or completed a round of all acceptance sets (or there are none) by then.
+  world actions (truncated); whether it is a **success** is :func:`mitlc.task.rules.success`
+  of the state it stops in (its verdict, its completed rounds, its end value).
 
 Sampling is inverse-CDF over one global cumulative array (``row + cumulative probability``), so
 a step of ``n`` episodes is a handful of vectorised operations whatever ``n``.

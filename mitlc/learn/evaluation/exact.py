@@ -1,9 +1,10 @@
 """The exact success probability of a memoryless policy on an MDP's product: the Markov chain
 it induces, solved by backward induction over the horizon.
 
-The event is the episode's success (see :mod:`mitlc.learn.envs.vec`): never *violated* within
-``horizon`` world actions, and *satisfied* or a completed round of all acceptance sets within
-them (a violation after a completed round is a failure). The
+The event is the episode's success (:func:`mitlc.task.rules.success`): never *violated* within
+``horizon`` world actions, and *satisfied*, a completed round of all acceptance sets, or the
+end value of the state it stops in (a violation after a completed round is a failure); no jump
+is taken once the horizon is reached. The
 policy may depend on the frontier mask, so the values are indexed ``[mask, product state]``
 like those of :func:`mitlc.check.solve.pmax_horizon` (its optimum is the same recursion with a
 maximum over the choices); epsilon jumps take no step.
