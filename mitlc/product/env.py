@@ -19,10 +19,10 @@ cell, before the first action).
   order of the automaton's ``jumps(q)``): the automaton moves, the world does not, no time
   passes (the step counter and the horizon are untouched, as in
   :func:`mitlc.check.solve.pmax_horizon`) and the observation is unchanged. A jump that ``q``
-  does not have is *invalid*: world and automaton stay as they are, the reward is 0, ``info["invalid_action"]`` is True, and it costs a step of
-  the episode's budget, so an agent that ignores the mask still ends every episode by the
-  horizon; :meth:`ProductEnv.action_masks` gives the valid actions (sb3-contrib's
-  ``MaskablePPO`` convention).
+  does not have is *invalid*: world and automaton stay as they are, the reward is 0,
+  ``info["invalid_action"]`` is True, and it costs a step of the episode's budget, so an agent
+  that ignores the mask still ends every episode by the horizon; :meth:`ProductEnv.action_masks`
+  gives the valid actions (sb3-contrib's ``MaskablePPO`` convention).
 * **Reward**: the task's (``rewards.accept`` for each acceptance set first seen in the current
   round, ``rewards.satisfied`` / ``rewards.violated`` on entering a satisfied / violated
   automaton state) plus the world's ``rewards.move`` for every world action other than ``stay``.
