@@ -19,7 +19,7 @@ def temporal_depth(formula: ast.Formula) -> int | None:
     """The last position ``formula`` reads (see the module docstring); ``None`` when it has
     an unbounded operator."""
     depth: dict[ast.Formula, int | None] = {}
-    for node in _children_first(formula):
+    for node in ast.subformulas(formula):  # children first
         if node in depth:
             continue
         inner = [depth[child] for child in ast.children(node)]
@@ -60,17 +60,3 @@ def short_horizon_note(formula: ast.Formula, horizon: int) -> str | None:
         "to be decided; an episode still pending then is judged on the trace it read (a "
         "deadline still open fails)"
     )
-
-
-def _children_first(formula: ast.Formula) -> list[ast.Formula]:
-    """Every subformula, children before parents (iterative: formulas may be deep)."""
-    order: list[ast.Formula] = []
-    stack: list[tuple[ast.Formula, bool]] = [(formula, False)]
-    while stack:
-        node, expanded = stack.pop()
-        if expanded:
-            order.append(node)
-            continue
-        stack.append((node, True))
-        stack.extend((child, False) for child in ast.children(node))
-    return order
