@@ -23,8 +23,8 @@ from mitlc.worlds.model import World
 from mitlc.worlds.plane import PlaneWorld
 
 if TYPE_CHECKING:
+    from mitlc.automata import DigitalAutomaton
     from mitlc.gym import TaskWrapper
-    from mitlc.task import TaskAutomaton
 
 AnyWorld: TypeAlias = World | PlaneWorld | EnvTask
 """A world of any kind (see the module docstring)."""
@@ -53,14 +53,16 @@ def is_finite(world: AnyWorld) -> TypeGuard[World]:
     return isinstance(world, World)
 
 
-def task_env(world: AnyWorld, automaton: TaskAutomaton, *, flatten: bool = False) -> TaskWrapper:
+def task_env(
+    world: AnyWorld, automaton: DigitalAutomaton, *, flatten: bool = False
+) -> TaskWrapper:
     """A fresh gymnasium env of ``world`` under the task wrapper, with the task ``automaton``
     (compiled once for many envs); ``flatten``: the wrapper's flat observation."""
     made: Any
     if isinstance(world, World):
         from mitlc.product.env import ProductEnv
 
-        made = ProductEnv(world, automaton, flatten=flatten)  # type: ignore[arg-type]
+        made = ProductEnv(world, automaton, flatten=flatten)
     elif isinstance(world, PlaneWorld):
         from mitlc.worlds.plane_env import plane_task
 
