@@ -12,11 +12,13 @@ import typer
 
 from mitlc.cli_common import (
     MaxStatesOpt,
+    TaskExprOpt,
+    TaskSpecOpt,
     TimeLimitOpt,
     UsageError,
     command_deadline,
     json_dumps,
-    load_formula,
+    task_formula,
 )
 from mitlc.limits import (
     DEFAULT_MAX_PRODUCT_STATES,
@@ -36,9 +38,8 @@ if TYPE_CHECKING:
 
 def check_command(
     world_file: Annotated[Path, typer.Argument(metavar="WORLD", help="A world file (YAML).")],
-    spec: Annotated[
-        str | None, typer.Option("--spec", help="A spec file instead of the world's own task.")
-    ] = None,
+    spec: TaskSpecOpt = None,
+    expr: TaskExprOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
     policy: Annotated[
         Path | None, typer.Option(
@@ -79,8 +80,8 @@ def check_command(
     from mitlc.task.horizon import short_horizon_note
     from mitlc.worlds import load_world
 
-    if spec is not None:
-        formula = load_formula(spec, None)
+    formula = task_formula(spec, expr)
+    if formula is not None:
         world = load_world(world_file, to_text(formula))
     else:
         world = load_world(world_file)

@@ -29,6 +29,23 @@ ExprOpt = Annotated[
     str | None,
     typer.Option("--expr", "-e", help="A formula given on the command line instead of SPEC."),
 ]
+TaskSpecOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--spec",
+        metavar="SPEC",
+        help="A spec file ('-': standard input) instead of the world's own task.",
+    ),
+]
+TaskExprOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--expr",
+        "-e",
+        metavar="FORMULA",
+        help="A formula given on the command line instead of the world's own task.",
+    ),
+]
 
 
 class UsageError(MitlcError):
@@ -63,6 +80,16 @@ def load_formula(spec: str | None, expr: str | None) -> Formula:
     if spec == "-":
         return parse(read_spec(sys.stdin.buffer, "<stdin>"), "<stdin>")
     return parse(read_spec(spec), spec)
+
+
+def task_formula(spec: str | None, expr: str | None) -> Formula | None:
+    """The formula that replaces a world's own task (``--spec SPEC`` or ``-e FORMULA``, read as
+    :func:`load_formula` reads a command's formula), or None where neither is given."""
+    if spec is not None and expr is not None:
+        raise UsageError("mitlc: give the task once: --spec SPEC or -e FORMULA, not both")
+    if spec is None and expr is None:
+        return None
+    return load_formula(spec, expr)
 
 
 def json_dumps(data: Any) -> str:

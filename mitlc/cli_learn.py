@@ -14,7 +14,13 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from mitlc.cli_common import command_deadline, time_limit_option
+from mitlc.cli_common import (
+    TaskExprOpt,
+    TaskSpecOpt,
+    command_deadline,
+    task_formula,
+    time_limit_option,
+)
 from mitlc.learn.names import ALGORITHMS
 from mitlc.learn.names import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
@@ -118,9 +124,8 @@ def train_command(
             "a run directory).",
         ),
     ] = False,
-    spec: Annotated[
-        str | None, typer.Option("--spec", help="A spec file instead of the world's task.")
-    ] = None,
+    spec: TaskSpecOpt = None,
+    expr: TaskExprOpt = None,
     settings: Annotated[
         list[str] | None,
         typer.Option("--set", metavar="KEY=VALUE", help="A training setting, e.g. q.alpha=0.2."),
@@ -154,11 +159,11 @@ def train_command(
         raise RunError("--resume needs --out: the run directory to continue")
     directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"
     formula = None
-    if spec is not None:
-        from mitlc.cli_common import load_formula
+    override = task_formula(spec, expr)
+    if override is not None:
         from mitlc.syntax import to_text
 
-        formula = to_text(load_formula(spec, None))
+        formula = to_text(override)
     sb3 = config.algo.startswith("sb3-")  # Stable-Baselines3's runs count environment steps
     with _StopFlag() as stop, _progress_display(quiet) as display:
         tasks: list[Any] = []  # the bar appears with the first progress, once the run is set up

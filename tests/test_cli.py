@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 from typer.testing import CliRunner
 
@@ -82,3 +83,40 @@ def test_python_dash_m_and_version() -> None:
 def test_fmt_output_parses_back() -> None:
     text = runner.invoke(app, ["fmt", str(ROOT / "specs" / "paper" / "case3.mitl")]).output
     assert parse(text) == parse(CASE1.with_name("case3.mitl").read_text(encoding="utf-8"))
+
+
+WORLD = ROOT / "specs" / "paper" / "case1.yaml"
+
+
+def _check_json(*args: str) -> dict[str, object]:
+    result = runner.invoke(app, ["check", str(WORLD), "--json", *args])
+    assert result.exit_code == 0, result.output
+    report: dict[str, object] = json.loads(result.output)
+    del report["seconds"]  # the only figure that changes from run to run
+    return report
+
+
+def test_check_expr_is_the_spec_file_given_inline(tmp_path: Path) -> None:
+    spec = tmp_path / "task.mitl"
+    spec.write_text("F[0,10] a\n", encoding="utf-8")
+    inline = _check_json("-e", "F[0,10] a")
+    assert inline == _check_json("--spec", str(spec))
+    assert inline == _check_json("--expr", "F_[0..10] a")  # read as --spec reads its text
+    assert inline["spec"] == "F[0,10] a" and inline["pmax"] != _check_json()["pmax"]
+    plain = runner.invoke(app, ["check", str(WORLD), "-e", "F[0,10] a"])
+    assert plain.exit_code == 0 and "F[0,10] a" in plain.output
+
+
+def test_check_refuses_spec_and_expr_together_and_points_at_a_bad_expr(tmp_path: Path) -> None:
+    spec = tmp_path / "task.mitl"
+    spec.write_text("F a\n", encoding="utf-8")
+    both = runner.invoke(app, ["check", str(WORLD), "--spec", str(spec), "-e", "F a"])
+    assert both.exit_code == 1 and "Traceback" not in both.output
+    assert both.output == "mitlc: give the task once: --spec SPEC or -e FORMULA, not both\n"
+    bad = runner.invoke(app, ["check", str(WORLD), "-e", "F[0,10 a"])
+    assert bad.exit_code == 1 and "Traceback" not in bad.output
+    # the same form as compile's: the source, line, column, the text and a caret under the fault
+    assert bad.output == runner.invoke(app, ["compile", "-e", "F[0,10 a"]).output
+    head, text, caret = bad.output.splitlines()
+    assert head.startswith("<expr>:1:8: ") and text.strip() == "F[0,10 a"
+    assert caret.strip() == "^" and caret.index("^") == text.index("F") + 7

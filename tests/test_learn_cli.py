@@ -193,3 +193,38 @@ def test_eval_stops_at_its_time_limit(tmp_path: Path) -> None:
     (line,) = result.output.strip().splitlines()
     assert line.startswith("mitlc eval stopped at the time limit of 1e-09 s (during ")
     assert line.endswith("raise it with --time-limit SECONDS (0 for none)")
+
+
+def test_train_expr_is_recorded_as_a_spec_file_is(tmp_path: Path) -> None:
+    tiny = ["--episodes", "20", "--quiet", "--no-eval"]
+    inline = tmp_path / "inline"
+    result = runner.invoke(app, ["train", CASE1, "-e", "F_[0..10] a", "--out", str(inline), *tiny])
+    assert result.exit_code == 0, result.output
+    spec = tmp_path / "task.mitl"
+    spec.write_text("F_[0..10] a\n", encoding="utf-8")
+    filed = tmp_path / "filed"
+    result = runner.invoke(app, ["train", CASE1, "--spec", str(spec), "--out", str(filed), *tiny])
+    assert result.exit_code == 0, result.output
+    recorded = json.loads((inline / "config.json").read_text())["spec"]
+    assert recorded == "F[0,10] a"
+    assert recorded == json.loads((filed / "config.json").read_text())["spec"]
+    # the run goes on with the same formula; another one is refused as a different run
+    more = ["--episodes", "200", "--resume", "--quiet", "--no-eval", "--out", str(inline)]
+    assert runner.invoke(app, ["train", CASE1, "-e", "F[0,10] a", *more]).exit_code == 0
+    other = runner.invoke(app, ["train", CASE1, "-e", "F[0,10] b", *more])
+    assert other.exit_code == 1 and "another world or task than the run's" in other.output
+
+
+def test_train_refuses_spec_and_expr_together_and_points_at_a_bad_expr(tmp_path: Path) -> None:
+    spec = tmp_path / "task.mitl"
+    spec.write_text("F a\n", encoding="utf-8")
+    out = tmp_path / "run"
+    both = runner.invoke(app, ["train", CASE1, "--spec", str(spec), "-e", "F a", "--out", str(out)])
+    assert both.exit_code == 1 and "Traceback" not in both.output
+    assert both.output == "mitlc: give the task once: --spec SPEC or -e FORMULA, not both\n"
+    bad = runner.invoke(app, ["train", CASE1, "-e", "F[0,10 a", "--out", str(out)])
+    assert bad.exit_code == 1 and "Traceback" not in bad.output
+    head, text, caret = bad.output.splitlines()
+    assert head.startswith("<expr>:1:8: ") and text.strip() == "F[0,10 a"
+    assert caret.strip() == "^" and caret.index("^") == text.index("F") + 7
+    assert not out.exists()
