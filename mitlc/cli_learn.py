@@ -204,6 +204,11 @@ def train_command(
         f"trained {result.episodes:,} episodes ({result.steps:,} steps) in "
         f"{result.seconds:.1f} s -> {directory}"
     )
+    if result.never_held:
+        from mitlc.learn.held import never_held_note
+
+        note = never_held_note(result.never_held, result.episodes, result.steps)
+        typer.echo(f"note: {note}", err=True)
     if evaluate_after:
         _print_evaluation(directory, None, 12345, as_json=False, bounds=False)
 
@@ -273,6 +278,10 @@ def _print_evaluation(
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         typer.echo(f"{key:<{width}}  {value}")
+    if report.never_held:
+        from mitlc.learn.held import never_held_note
+
+        typer.echo(f"note: {never_held_note(report.never_held, report.episodes)}", err=True)
 
 
 def eval_command(

@@ -307,7 +307,8 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     "bad label": (
         {"labels": {"goal": {"cells": [[3, 3]]}, "hole": {"obs": [5]}}},
         "labels.goal: expected {obs: [...]}, {decoded: {...}}, {box: {...}}, {disc: {...}}, "
-        '{info: key} or a list of them, got {"cells": [[3, 3]]}',
+        "{info: path}, {attr: path}, {reward: {...}}, {terminated: true} or a list of them, "
+        'got {"cells": [[3, 3]]}',
     ),
     "obs out of range": (
         {"labels": {"goal": {"obs": [16]}, "hole": {"obs": [5]}}},

@@ -152,7 +152,7 @@ BAD = [
     ({"goal": [{"obs": [1]}, {"obs": 3}]}, None, r"labels.goal\[1\].obs: expected a list"),
     (goal("obs", [16]), spaces.Discrete(16), "labels.goal.obs: 16 is outside"),
     (goal("obs", [1]), PLANE, "labels.goal.obs: needs a Discrete observation"),
-    (goal("info", 3), None, "labels.goal.info: expected the name of an info key"),
+    (goal("info", 3), None, "labels.goal.info: expected a dotted path"),
     (goal("box", {"index": [0], "low": [0]}), None, "labels.goal.box: missing field 'high'"),
     (box(lo=1), None, "labels.goal.box: unknown field 'lo'"),
     (box(index=[3]), PLANE, "labels.goal.box.index: index 3 is out of range"),

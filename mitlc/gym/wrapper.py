@@ -72,7 +72,16 @@ from gymnasium.utils import RecordConstructorArgs
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.errors import MitlcError
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
-from mitlc.labels import LabelFunction, Labels, as_labels, letter_reader
+from mitlc.labels import (
+    LabelDeclarationError,
+    LabelFunction,
+    Labeller,
+    Labels,
+    as_labels,
+    letter_reader,
+)
+from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
+from mitlc.labels.values import Moment
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
 from mitlc.task.rules import TaskRewards
@@ -152,6 +161,13 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self.monitor = TaskMonitor(automaton, _rewards(rewards))
         self.labels = as_labels(labels, env.observation_space)
         self._read = letter_reader(self.labels, automaton.propositions)
+        self._unwrapped = env.unwrapped
+        values = self.labels.values() if isinstance(self.labels, Labeller) else ()
+        self._moment = bool(values)
+        self._probe: list[dict[str, Any]] | None = [] if values else None
+        self.held = 0
+        """The letters read so far, or-ed: bit ``i`` is set once ``automaton.propositions[i]``
+        has held (a proposition that never holds is almost always a mistaken label)."""
         self.horizon, self.reward_mode, self.flatten = horizon, reward_mode, flatten
         self._cut_warned = False
         limit = time_limit(env)
@@ -291,6 +307,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             "env_ended": self._ended,
             "env_obs": self._env_obs,
             "env_info": data_only(self._env_info),
+            "held": self.held,
             "env": own,
         }
 
@@ -300,6 +317,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._letter, self._done = int(saved["letter"]), bool(saved["done"])
         self._ended = bool(saved.get("env_ended", False))
         self._env_obs, self._env_info = saved["env_obs"], dict(saved.get("env_info", {}))
+        self.held = int(saved.get("held", 0))
         inner = self.env.unwrapped
         if hasattr(inner, "load_state_dict"):
             inner.load_state_dict(saved["env"])
@@ -312,7 +330,13 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         """Reset the env and start the task's run at its position 0."""
         obs, info = self.env.reset(seed=seed, options=options)
         self._env_obs, self._env_info = obs, info
-        self._letter = self._read(obs, info)
+        if self._moment:
+            if self._probe is not None:
+                self._check_labels(info, reset=True)
+            self._letter = self._read(obs, info, Moment(self._unwrapped))
+        else:
+            self._letter = self._read(obs, info)
+        self.held |= self._letter
         self._state = state = self.monitor.reset()
         self._done = self._ended = False
         verdict = self.monitor.verdict(state.q)
@@ -339,7 +363,14 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         else:
             obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
             self._env_obs, self._env_info = obs, env_info
-            self._letter = self._read(obs, env_info)
+            if self._moment:
+                if self._probe is not None:
+                    self._check_labels(env_info, reset=False)
+                moment = Moment(self._unwrapped, float(env_reward), bool(inner_terminated))
+                self._letter = self._read(obs, env_info, moment)
+            else:
+                self._letter = self._read(obs, env_info)
+            self.held |= self._letter
             if self._add:
                 reward += float(env_reward)
             if inner_terminated or inner_truncated:
@@ -394,6 +425,21 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return self._observation(self._env_obs, state), out.reward, out.terminated, truncated, info
 
     # -- internals -----------------------------------------------------------------------------
+
+    def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
+        """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``
+        paths in the first reset's info or, where one is missing there, the first step's
+        (:mod:`mitlc.labels.probe`); a :class:`~mitlc.labels.LabelDeclarationError` naming
+        each path that is not there."""
+        assert isinstance(self.labels, Labeller) and self._probe is not None
+        seen = self._probe
+        seen.append(info)
+        problems = attr_problems(self.labels, self._unwrapped) if reset and len(seen) == 1 else []
+        if not reset or info_paths_found(self.labels, info):
+            problems += info_problems(self.labels, seen)
+            self._probe = None
+        if problems:
+            raise LabelDeclarationError("\n".join(problems))
 
     def _check_capacity(self, q: int) -> None:
         """A lazy automaton's new states must fit the spaces declared for it."""

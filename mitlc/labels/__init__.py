@@ -16,8 +16,12 @@ and compiled by :func:`compile_labels`:
     the position read from a Box observation at ``index`` lies in the closed box;
 ``{disc: {index: [0, 1], center: [2.0, 3.0], radius: 0.5}}``
     that position lies in the closed disc;
-``{info: key}``
-    ``info[key]`` is truthy (a missing key is false).
+``{info: rewards.arrived_reward}``, ``{attr: carrying.type, equals: key}``
+    a value read from a dotted path into nested ``info`` or on ``env.unwrapped``, tested:
+    truthy, ``equals``, ``in``, ``below``/``above``, ``box`` or ``disc`` (a missing value is
+    false; :mod:`mitlc.labels.declare_values`);
+``{reward: {below: -50}}``, ``{terminated: true}``
+    an event of the step that reached the position (false at the first position).
 
 For a Dict observation, ``key`` names the part a form reads: beside ``obs``
 (``{obs: [1, 2], key: agent}``), inside the mapping of ``decoded``, ``box`` and ``disc``. A
@@ -39,7 +43,6 @@ from mitlc.labels.forms import (
     Form,
     InBox,
     InDisc,
-    InfoTrue,
     LabelDeclarationError,
     LabelFunction,
     Labeller,
@@ -49,6 +52,7 @@ from mitlc.labels.forms import (
     letter_reader,
     undeclared,
 )
+from mitlc.labels.values import Moment, Value
 
 __all__ = [
     "FORMS",
@@ -59,13 +63,14 @@ __all__ = [
     "Form",
     "InBox",
     "InDisc",
-    "InfoTrue",
     "LabelDeclarationError",
     "LabelFunction",
     "Labeller",
     "Labels",
     "LetterReader",
+    "Moment",
     "ObsIn",
+    "Value",
     "as_labels",
     "compile_labels",
     "letter_reader",

@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
+from mitlc.labels.declare_values import VALUE_FORMS, value_form
 from mitlc.labels.forms import (
     Decoded,
     Form,
     InBox,
     InDisc,
-    InfoTrue,
     LabelDeclarationError,
     LabelFunction,
     Labeller,
@@ -26,8 +26,9 @@ from mitlc.labels.forms import (
 )
 from mitlc.worlds.model import IntArray
 
-FORMS = ("obs", "decoded", "box", "disc", "info")
-"""The declarative forms."""
+FORMS = ("obs", "decoded", "box", "disc", "info", "attr", "reward", "terminated")
+"""The declarative forms (``info``, ``attr``, ``reward`` and ``terminated`` read a value:
+:mod:`mitlc.labels.declare_values`)."""
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -92,6 +93,8 @@ def _fail(path: str, message: str) -> LabelDeclarationError:
 def _form(declaration: Any, path: str, space: Any) -> Form:
     if not isinstance(declaration, Mapping):
         raise _fail(path, f"expected a mapping with one of the forms {', '.join(FORMS)}")
+    if any(k in declaration for k in VALUE_FORMS):
+        return value_form(declaration, path)
     kinds = [k for k in declaration if k in FORMS]
     extra = [k for k in declaration if k not in FORMS and k != "key"]
     if extra:
@@ -102,10 +105,6 @@ def _form(declaration: Any, path: str, space: Any) -> Form:
     if "key" in declaration and kind != "obs":
         raise _fail(f"{path}.key", f"not allowed beside {kind!r} (put it inside)")
     body, where = declaration[kind], f"{path}.{kind}"
-    if kind == "info":
-        if not isinstance(body, str):
-            raise _fail(where, "expected the name of an info key")
-        return InfoTrue(body)
     if kind == "obs":
         key = _key(declaration.get("key"), f"{path}.key")
         values = _ints(body, where)

@@ -8,12 +8,15 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 from mitlc.errors import MitlcError
+from mitlc.labels.values import NO_MOMENT, Moment, Value
 
 LabelFunction = Callable[[Any, dict[str, Any]], Iterable[str]]
 """A labelling function: ``(obs, info) -> the true propositions``."""
 
-LetterReader = Callable[[Any, dict[str, Any]], int]
-"""``(obs, info) -> letter`` over given propositions (bit ``i`` for ``propositions[i]``)."""
+LetterReader = Callable[..., int]
+"""``(obs, info[, moment]) -> letter`` over given propositions (bit ``i`` for
+``propositions[i]``); ``moment`` (:class:`~mitlc.labels.values.Moment`) is what the task wrapper
+knows beside them: the env and the last step's reward and end."""
 
 _CACHE_LIMIT = 1 << 16
 
@@ -30,7 +33,9 @@ class Labels(Protocol):
 
     @property
     def propositions(self) -> tuple[str, ...]: ...
-    def __call__(self, obs: Any, info: Mapping[str, Any]) -> frozenset[str]: ...
+    def __call__(
+        self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT
+    ) -> frozenset[str]: ...
     def letter_reader(self, propositions: Sequence[str]) -> LetterReader: ...
 
 
@@ -48,7 +53,7 @@ class ObsIn:
     values: frozenset[int]
     key: str | None = None
 
-    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+    def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
         return int(_part(obs, self.key)) in self.values
 
@@ -63,7 +68,7 @@ class Decoded:
     key: str | None = None
     equal: tuple[tuple[int, int, int, int], ...] = ()
 
-    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+    def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
         value = int(_part(obs, self.key))
         return all(value // d % r in allowed for d, r, allowed in self.checks) and all(
@@ -80,7 +85,7 @@ class InBox:
     high: tuple[float, ...]
     key: str | None = None
 
-    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+    def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
         x = _part(obs, self.key)
         return all(
@@ -98,25 +103,14 @@ class InDisc:
     radius: float
     key: str | None = None
 
-    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
+    def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
         x = _part(obs, self.key)
         squared = sum((float(x[i]) - c) ** 2 for i, c in zip(self.index, self.center, strict=True))
         return squared <= self.radius * self.radius
 
 
-@dataclass(frozen=True, slots=True)
-class InfoTrue:
-    """``info[key]`` is truthy."""
-
-    key: str
-
-    def holds(self, obs: Any, info: Mapping[str, Any]) -> bool:
-        """Whether the form holds."""
-        return bool(info.get(self.key))
-
-
-Form = ObsIn | Decoded | InBox | InDisc | InfoTrue
+Form = ObsIn | Decoded | InBox | InDisc | Value
 
 
 # -- compiled labels ---------------------------------------------------------------------------
@@ -129,12 +123,12 @@ class DeclaredLetters:
 
     checks: tuple[tuple[int, tuple[Form, ...]], ...]
 
-    def __call__(self, obs: Any, info: Mapping[str, Any]) -> int:
-        """The letter of ``(obs, info)``."""
+    def __call__(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> int:
+        """The letter of ``(obs, info)`` at ``moment``."""
         letter = 0
         for bit, forms in self.checks:
             for form in forms:
-                if form.holds(obs, info):
+                if form.holds(obs, info, moment):
                     letter |= bit
                     break
         return letter
@@ -148,8 +142,8 @@ class CachedLetters:
     letters: DeclaredLetters
     cache: dict[int, int] = field(default_factory=dict)
 
-    def __call__(self, obs: Any, info: Mapping[str, Any]) -> int:
-        """The letter of ``(obs, info)``."""
+    def __call__(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> int:
+        """The letter of ``(obs, info)`` (the forms do not read ``moment``)."""
         cache = self.cache
         if type(obs) is int:
             found = cache.get(obs)
@@ -169,12 +163,24 @@ class Labeller:
     propositions: tuple[str, ...]
     forms: tuple[tuple[Form, ...], ...]
 
-    def __call__(self, obs: Any, info: Mapping[str, Any]) -> frozenset[str]:
-        """The propositions true at ``(obs, info)``."""
+    def __call__(
+        self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT
+    ) -> frozenset[str]:
+        """The propositions true at ``(obs, info)`` at ``moment``."""
         return frozenset(
             p
             for p, forms in zip(self.propositions, self.forms, strict=True)
-            if any(f.holds(obs, info) for f in forms)
+            if any(f.holds(obs, info, moment) for f in forms)
+        )
+
+    def values(self) -> tuple[tuple[str, int, Value], ...]:
+        """Each form that reads a value (an attribute, an ``info`` path, an event) with its
+        proposition and its index among the proposition's forms."""
+        return tuple(
+            (p, i, f)
+            for p, forms in zip(self.propositions, self.forms, strict=True)
+            for i, f in enumerate(forms)
+            if isinstance(f, Value)
         )
 
     def letter_reader(self, propositions: Sequence[str]) -> DeclaredLetters | CachedLetters:
@@ -197,8 +203,8 @@ class CallableLetters:
     function: LabelFunction
     propositions: tuple[str, ...]
 
-    def __call__(self, obs: Any, info: dict[str, Any]) -> int:
-        """The letter of ``(obs, info)``."""
+    def __call__(self, obs: Any, info: dict[str, Any], moment: Moment = NO_MOMENT) -> int:
+        """The letter of ``(obs, info)`` (a labelling function reads only those)."""
         true = self.function(obs, info)
         if not isinstance(true, set | frozenset):
             true = frozenset(true)

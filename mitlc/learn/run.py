@@ -36,6 +36,7 @@ import numpy as np
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.envs.envvec import VectorTask
 from mitlc.learn.envs.vector import ProductVectorEnv
+from mitlc.learn.held import held_of, never_held
 from mitlc.learn.learners.base import Learner, automaton_potential, potential
 from mitlc.learn.learners.open_world import make_open_learner
 from mitlc.learn.rundir import checkpoint
@@ -273,15 +274,19 @@ def _train(
     finally:
         metrics.close()
         save()
+    unseen = () if setting.finite else never_held(setting.automaton.propositions,
+                                                   held_of(env.envs))  # fmt: skip
     if not stopped:
-        write_json(
-            directory / SUMMARY,
-            {
-                "episodes": tally.episodes,
-                "steps": tally.steps,
-                "seconds": round(tally.seconds, 3),
-                "success_rate": tally.last_rate,
-                "mean_return": tally.last_return,
-            },
-        )
-    return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped)
+        summary: dict[str, Any] = {
+            "episodes": tally.episodes,
+            "steps": tally.steps,
+            "seconds": round(tally.seconds, 3),
+            "success_rate": tally.last_rate,
+            "mean_return": tally.last_return,
+        }
+        if unseen:
+            summary["never_held"] = list(unseen)
+        write_json(directory / SUMMARY, summary)
+    return RunResult(
+        directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen
+    )

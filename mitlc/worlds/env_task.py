@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.worlds import gym_world
+from mitlc.worlds.env_make import quiet
 from mitlc.worlds.model import Rewards
 from mitlc.worlds.schema import Env
 
@@ -79,11 +80,27 @@ def finite_env(path: str | Path) -> bool:
     path = Path(path)
     source = _mapping(path)
     world = _read_env(path, source)
+    if reads_env(world.labels):
+        return False
     env = _made(path, source, world.env)
     try:
         return gym_world.is_finite(env) and _has_start(env)
     finally:
         env.close()
+
+
+def reads_env(labels: dict[str, Any]) -> bool:
+    """Whether any of an env world file's labels reads more than the observation and the
+    step's events (an ``attr`` or ``info`` path): such labels cannot be tabulated over the
+    states of a finite env, so its world is learned through the task wrapper."""
+    from mitlc.labels import LabelDeclarationError, compile_labels
+    from mitlc.labels.values import AttrPath, InfoPath
+
+    try:
+        compiled = compile_labels(gym_world.declarations(labels))
+    except LabelDeclarationError:  # reported where the labels are checked
+        return False
+    return any(isinstance(f.source, AttrPath | InfoPath) for _, _, f in compiled.values())
 
 
 def _has_start(env: Any) -> bool:
@@ -95,6 +112,7 @@ def load_env_task(path: str | Path, spec: str | None = None) -> EnvTask:
     wrapper (``spec``, a formula's text, in place of the file's task); a
     :class:`mitlc.worlds.WorldError` naming the field if it is bad."""
     from mitlc.gym import TaskWrapperError
+    from mitlc.labels import LabelDeclarationError
     from mitlc.worlds.load import (
         WorldError,
         _load_spec,
@@ -134,13 +152,29 @@ def load_env_task(path: str | Path, spec: str | None = None) -> EnvTask:
         from mitlc.syntax import parse
 
         automaton = translate(parse(text, text_source))
-        TaskWrapper(env, automaton, labels, rewards=task.rewards, horizon=task.horizon)
+        wrapped = TaskWrapper(env, automaton, labels, rewards=task.rewards, horizon=task.horizon)
+        _probe(wrapped)
     except TaskWrapperError as err:
         where = ("horizon",) if "horizon" in str(err) else ("env", "id")
         raise WorldError(str(path), [source.locate(where, str(err))]) from None
+    except LabelDeclarationError as err:
+        found = [gym_world.field_problem(line) for line in str(err).splitlines()]
+        raise WorldError(str(path), [source.locate(p, m) for p, m in found]) from None
     finally:
         env.close()
     return task
+
+
+def _probe(wrapped: Any) -> None:
+    """Reset the wrapped env and take one step, so that the labels' ``attr`` and ``info``
+    paths are checked against it (:mod:`mitlc.labels.probe`; a
+    :class:`~mitlc.labels.LabelDeclarationError` if one is not there)."""
+    if not wrapped.labels.values():
+        return
+    wrapped.action_space.seed(0)
+    with quiet():
+        wrapped.reset(seed=0)
+        wrapped.step(wrapped.action_space.sample())
 
 
 def _made(path: Path, source: Any, settings: Env) -> Any:

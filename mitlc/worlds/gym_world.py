@@ -32,9 +32,10 @@ tabular learner read it as they read a grid:
 * ``rows``, ``cols`` and ``cells`` place the states for rendering and plots: on the env's map
   when its ``desc`` has one character per state (FrozenLake), else on one row of ``n`` cells.
 
-Labels are declarative; nothing read from the file runs code, and only registered ids are made
-(``gymnasium.make(id, **kwargs)``, the arguments YAML scalars, lists and mappings; not the
-compatibility ids of :data:`WRAPPING`, which make an environment named in their arguments):
+Labels are declarative; nothing read from the file runs code but the import of installed
+modules by name (:mod:`mitlc.worlds.env_make`: ``env.import``, ``module:EnvId``, ``wrappers``),
+and only registered ids are made (``gymnasium.make(id, **kwargs)``, the arguments YAML scalars,
+lists and mappings). The labels of a finite world:
 
 * ``{obs: [5, 7]}`` holds in the listed observations;
 * ``{decoded: {radices: [5, 5, 5, 4], fields: [row, col, passenger, destination], where:
@@ -51,20 +52,21 @@ is not a finite world (it can be learned through :class:`mitlc.gym.TaskWrapper`)
 
 from __future__ import annotations
 
-import contextlib
-import difflib
 import math
 import operator
 import re
-import warnings
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from mitlc.errors import MitlcError
+from mitlc.labels.values import Moment
 from mitlc.limits import MAX_GRID_CELLS
+from mitlc.worlds import env_make
+from mitlc.worlds.env_make import ENV_ID
 from mitlc.worlds.grid import FieldPath, Found, render
+from mitlc.worlds.gym_events import EventStates, split_by_events
 from mitlc.worlds.model import IntArray, Sparse, World
 from mitlc.worlds.schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel, show
 
@@ -81,12 +83,6 @@ MAX_ENV_STATES = MAX_GRID_CELLS
 TOLERANCE = 1e-9
 """How far from 1 a distribution of the env (a row of ``P``, the start) may sum."""
 
-ENV_ID: FieldPath = ("env", "id")
-
-WRAPPING = frozenset({"GymV21Environment-v0", "GymV26Environment-v0"})
-"""Registered ids that make another environment named in their arguments (shimmy's
-compatibility layers, which read an old gym id, ``module:Class`` included): refused, so that a
-world file makes only what gymnasium registers."""
 
 
 class GymWorldError(MitlcError):
@@ -112,6 +108,9 @@ def check_file(file: EnvWorldFile) -> Found:
     found: Found = []
     for key, value in file.env.kwargs.items():
         _yaml_value(value, ("env", "kwargs", key), found)
+    for i, entry in enumerate(file.env.wrappers):
+        for key, value in getattr(entry, "kwargs", {}).items():
+            _yaml_value(value, ("env", "wrappers", i, "kwargs", key), found)
     if file.actions is not None:
         _once(("actions",), "action", file.actions, found)
     for name, label in file.labels.items():
@@ -221,44 +220,17 @@ def _check_decoding(path: FieldPath, decoding: Decoding, found: Found) -> None:
 # --- making the env --------------------------------------------------------------------------
 
 
-@contextlib.contextmanager
-def _quiet() -> Iterator[None]:
-    """gymnasium's warnings (deprecations, the env checker's advice) silenced."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        yield
-
-
 def make_env(settings: Env) -> Any:
-    """``gymnasium.make(id, **kwargs)`` for a registered id (nothing else is made); a
-    :class:`GymWorldError` at ``env.id`` or ``env.kwargs`` if it cannot be made."""
+    """The env ``settings`` names, made (:func:`mitlc.worlds.env_make.make_env`: installed
+    modules imported by name, registered ids only, the listed wrappers applied); a
+    :class:`GymWorldError` at the field at fault if it cannot be."""
     try:
-        with _quiet():
-            import gymnasium
-    except ImportError as err:  # pragma: no cover - gymnasium is a dependency
-        raise GymWorldError([(("env",), f"gymnasium cannot be imported: {err}")]) from None
-    env_id = settings.id
-    registry = gymnasium.registry
-    if env_id not in registry:
-        close = difflib.get_close_matches(env_id, sorted(registry), n=1, cutoff=0.7)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise GymWorldError([(ENV_ID, f"no gymnasium environment {env_id!r}{hint}")])
-    if env_id in WRAPPING:
-        message = f"{env_id} makes another environment by name; name that environment's id"
-        raise GymWorldError([(ENV_ID, message)])
-    try:
-        with _quiet():
-            return gymnasium.make(env_id, **settings.kwargs)
-    except Exception as err:  # the env's own constructor may raise anything
-        where: FieldPath = ("env", "kwargs") if settings.kwargs else ENV_ID
-        raise GymWorldError([(where, f"{env_id} cannot be made: {_reason(err)}")]) from None
+        return env_make.make_env(settings)
+    except env_make.EnvMakeError as err:
+        raise GymWorldError(err.found) from None
 
 
-def _reason(err: BaseException) -> str:
-    """An exception in one line, without gymnasium's note on where it was raised."""
-    text = str(err).strip().splitlines()[0] if str(err).strip() else ""
-    text = text.split(" was raised from the environment creator")[0]
-    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+_reason = env_make.reason
 
 
 def is_finite(env: Any) -> bool:
@@ -333,6 +305,44 @@ def letters_of(labels: Mapping[str, Any], propositions: Sequence[str], n: int) -
 
 
 # --- the world -------------------------------------------------------------------------------
+
+
+def has_events(labels: Mapping[str, Any]) -> bool:
+    """Whether any label reads the step's events (its reward, its termination)."""
+    from mitlc.labels import compile_labels
+    from mitlc.labels.values import StepReward, StepTerminated
+
+    compiled = compile_labels(declarations(labels))
+    return any(isinstance(f.source, StepReward | StepTerminated) for _, _, f in compiled.values())
+
+
+def _split(
+    file: EnvWorldFile,
+    table: Any,
+    m: int,
+    propositions: Sequence[str],
+    starts: Sequence[tuple[int, float]],
+) -> EventStates:
+    """The env's states split by the events of the steps into them (:mod:`gym_events`)."""
+    from mitlc.labels import compile_labels
+
+    declared = declarations({p: file.labels[p] for p in propositions if p in file.labels})
+    named = tuple(declared)
+    reader = compile_labels(declared).letter_reader(named)
+    bits = [(named.index(p), i) for i, p in enumerate(propositions) if p in declared]
+
+    def read(obs: int, moment: Moment) -> int:
+        partial = reader(obs, {}, moment)
+        return sum(((partial >> j) & 1) << i for j, i in bits)
+
+    def entry(item: Any) -> tuple[float, int, float, bool]:
+        return float(item[0]), operator.index(item[1]), float(item[2]), bool(item[3])
+
+    try:
+        return split_by_events(table, m, read, starts, entry, MAX_ENV_STATES)
+    except ValueError as err:
+        raise GymWorldError([(ENV_ID, f"{file.env.id}: {err}")]) from None
+
 
 
 def _discrete(space: Any, what: str, env_id: str) -> int:
@@ -495,19 +505,30 @@ def build_world(
     _check_labels(file.labels, env.observation_space, found)
     if found:
         raise GymWorldError(found)
+    if file.env.wrappers:
+        message = ("a finite env is converted from its transition table, which its wrappers do "
+                   "not change: list no wrappers to check it (or learn it with them through "
+                   "the task wrapper: mitlc train)")  # fmt: skip
+        raise GymWorldError([(("env", "wrappers"), message)])
     actions = action_names(file, env, m)
-    letters = letters_of(file.labels, propositions, n)
+    rows, ending, plain = transition_rows(unwrapped.P, n, m, env_id)
+    start, distribution = start_of(unwrapped, n, env_id)
+    starts = [s for s, _ in distribution] or [start]
+    grid_rows, grid_cols, cells = _layout(unwrapped, n)
+    if has_events(file.labels):
+        split = _split(file, unwrapped.P, m, propositions, distribution or ((start, 1.0),))
+        letters = np.asarray(split.letters, dtype=np.int64)
+        rows, start, distribution = split.rows, split.start, split.start_distribution
+        cells = tuple(cells[o] for o in split.observation)
+    else:
+        letters = letters_of(file.labels, propositions, n)
+        _absorb(rows, ending, plain, starts, m, env_id)
     empty = [p for i, p in enumerate(propositions) if not np.any((letters >> i) & 1)]
     if empty:
         known = ", ".join(sorted(file.labels)) or "none"
         raise GymWorldError(
             [(("spec",), f"proposition {p!r} holds in no state (labels: {known})") for p in empty]
         )
-    rows, ending, plain = transition_rows(unwrapped.P, n, m, env_id)
-    start, distribution = start_of(unwrapped, n, env_id)
-    starts = [s for s, _ in distribution] or [start]
-    _absorb(rows, ending, plain, starts, m, env_id)
-    grid_rows, grid_cols, cells = _layout(unwrapped, n)
     reward = file.reward
     return World(
         name=name,

@@ -176,7 +176,8 @@ def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[Field
         path = tuple(x for i, x in enumerate(loc) if not is_tag(loc, i) and x != "[key]")
         if kind == "extra_forbidden":
             if env:
-                fields = list(_env_model(loc[:-1]).model_fields)
+                model = _env_model(loc[:-1])
+                fields = [f.alias or n for n, f in model.model_fields.items()]
             else:
                 fields = list(MODELS.get(tuple(map(str, loc[:-1])), WorldFile).model_fields)
             close = difflib.get_close_matches(str(loc[-1]), fields, n=1)
@@ -209,7 +210,10 @@ def _is_env_tag(loc: tuple[str | int, ...], i: int) -> bool:
 
 def _env_model(loc: tuple[str | int, ...]) -> type[BaseModel]:
     """The model of an env world file at ``loc`` (a label's name read as ``*``)."""
-    key = tuple("*" if i == 1 and loc[0] == "labels" else str(x) for i, x in enumerate(loc))
+    key = tuple(
+        "*" if (i == 1 and loc[0] == "labels") or isinstance(x, int) else str(x)
+        for i, x in enumerate(loc)
+    )
     return ENV_MODELS.get(key, EnvWorldFile)
 
 

@@ -388,14 +388,74 @@ States = Annotated[list[int], BeforeValidator(_states)]
 Where = Annotated[list[int] | str, BeforeValidator(_where)]
 
 
-class Env(_Model):
-    """A registered gymnasium environment and the arguments it is made with."""
+def _module(value: object) -> object:
+    if not (isinstance(value, str) and re.fullmatch(MODULE, value)):
+        raise _fail("an installed module's dotted name (e.g. minigrid), never a file", value)
+    return value
 
-    id: EnvId = Field(description="A registered gymnasium id, e.g. FrozenLake-v1 or Taxi-v4.")
+
+MODULE = r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*"
+"""A module's dotted name (:data:`mitlc.worlds.env_make.MODULE`)."""
+ModuleName = Annotated[str, BeforeValidator(_module), Field(json_schema_extra={"pattern": MODULE})]
+
+
+class WrapperEntry(_Model):
+    """A gymnasium wrapper class from an installed module, and its keyword arguments."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    cls: str = Field(alias="class", description="module:Class, e.g. "
+                     "minigrid.wrappers:ImgObsWrapper.")  # fmt: skip
+    kwargs: dict[KwargName, Any] = Field(
+        default_factory=dict, description="Keyword arguments: YAML scalars, lists and mappings."
+    )
+
+
+def _wrapper(value: object) -> object:
+    return {"class": value} if isinstance(value, str) else value
+
+
+Wrapper = Annotated[
+    WrapperEntry,
+    BeforeValidator(_wrapper),
+    WithJsonSchema(
+        {
+            "description": "module:Class, or {class: module:Class, kwargs: {...}}",
+            "oneOf": [
+                {"type": "string", "pattern": f"^{MODULE}:[A-Za-z][A-Za-z0-9_]*$"},
+                {
+                    "type": "object",
+                    "properties": {"class": {"type": "string"}, "kwargs": {"type": "object"}},
+                    "required": ["class"],
+                    "additionalProperties": False,
+                },
+            ],
+        }
+    ),
+]
+
+
+class Env(_Model):
+    """A registered gymnasium environment, the installed modules that register it, the
+    arguments it is made with and the wrappers put around it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    id: EnvId = Field(description="A registered gymnasium id, e.g. FrozenLake-v1 or Taxi-v4, or "
+                      "module:EnvId (the installed module is imported first).")  # fmt: skip
+    imports: list[ModuleName] = Field(
+        default_factory=list,
+        alias="import",
+        description="Installed modules to import first, by dotted name (their import registers "
+        "their envs), e.g. [minigrid].",
+    )
     kwargs: dict[KwargName, Any] = Field(
         default_factory=dict,
         description="Keyword arguments of gymnasium.make(id, **kwargs): YAML scalars, lists "
         "and mappings only.",
+    )
+    wrappers: list[Wrapper] = Field(
+        default_factory=list,
+        description="Gymnasium wrappers applied in order (inside the task wrapper): "
+        "'module:Class' or {class: module:Class, kwargs: {...}}.",
     )
 
 
@@ -425,7 +485,7 @@ class DecodedLabel(_Model):
     decoded: Decoding = Field(description="The decoding and the condition on its fields.")
 
 
-FORM_KEYS = ("box", "disc", "info", "key")
+FORM_KEYS = ("box", "disc", "info", "key", "attr", "reward", "terminated")
 """Keys that make an env world's label one of :mod:`mitlc.labels`' other forms."""
 
 
@@ -475,7 +535,8 @@ EnvLabel = Annotated[
         _label_kind,
         custom_error_type="label_kind",
         custom_error_message="expected {obs: [...]}, {decoded: {...}}, {box: {...}}, "
-        "{disc: {...}}, {info: key} or a list of them",
+        "{disc: {...}}, {info: path}, {attr: path}, {reward: {...}}, {terminated: true} or a "
+        "list of them",
     ),
 ]
 
@@ -501,14 +562,18 @@ class EnvWorldFile(TaskFields):
         default_factory=dict,
         description="For each proposition, where it holds: {obs: [...]} or {decoded: {...}} "
         "for a discrete observation; {box: {index, low, high}}, {disc: {index, center, "
-        "radius}} for a Box one; {info: key}; 'key' for a part of a Dict observation; or a "
-        "list of these (any of them). Every proposition of the spec must be labelled.",
+        "radius}} for a Box one; 'key' for a part of a Dict observation; {info: path} or "
+        "{attr: path} (a dotted path into info or on env.unwrapped) with a test (equals, in, "
+        "below, above, box, disc; none: truthy); the step's events {reward: {below: x}}, "
+        "{terminated: true}; or a list of these (any of them). Every proposition of the spec "
+        "must be labelled.",
     )
 
 
 ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
     (): EnvWorldFile,
     ("env",): Env,
+    ("env", "wrappers", "*"): WrapperEntry,
     ("labels", "*", "obs"): ObsLabel,
     ("labels", "*", "decoded"): DecodedLabel,
     ("labels", "*", "decoded", "decoded"): Decoding,

@@ -24,6 +24,7 @@ from typing import Any, Protocol, runtime_checkable
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.evaluation.exact import policy_success
 from mitlc.learn.evaluation.montecarlo import monte_carlo, wilson
+from mitlc.learn.held import HeldLog, never_held
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, batches
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
@@ -59,6 +60,9 @@ class Evaluation:
     lower: float | None = None
     """For a POMDP: the exact success of the best observation-based policy found, a lower
     bound of the optimum (``None`` for an MDP, or where the search does not apply)."""
+    never_held: tuple[str, ...] = ()
+    """The task's propositions that no letter read in the evaluation made true (worlds
+    evaluated through the task wrapper; :mod:`mitlc.learn.held`)."""
 
     @property
     def success_rate(self) -> float:
@@ -98,6 +102,8 @@ class Evaluation:
             data["exact_ratio"] = self.exact / positive
         if self.bounds is not None:
             data["bounds"] = self.bounds
+        if self.never_held:
+            data["never_held"] = list(self.never_held)
         if self.lower is not None:
             data["lower_bound"] = self.lower
             data["lower_ratio"] = self.success_rate / self.lower if self.lower > 0 else None
@@ -126,7 +132,9 @@ def evaluate(
     setting, learner = load_learner(Path(directory), deadline=clock)
     count = episodes if episodes is not None else setting.config.eval_episodes
     policy = learner.policy()
-    estimate = monte_carlo(batches(setting, seed), policy, count)
+    log = HeldLog()
+    estimate = monte_carlo(log.track(batches(setting, seed)), policy, count)
+    unseen = () if setting.finite else never_held(setting.automaton.propositions, log.held())
     optimum, exact, bounds, lower = None, None, None, None
     if setting.finite:
         optimum, exact, bounds, lower = _exact(setting, policy, pomdp_bounds, clock)
@@ -142,6 +150,7 @@ def evaluate(
         bounds=bounds,
         seconds=time.perf_counter() - start,
         lower=lower,
+        never_held=unseen,
     )
 
 

@@ -39,6 +39,9 @@ class RunResult:
     seconds: float
     stopped: bool
     """The caller asked the run to stop before its episodes were done."""
+    never_held: tuple[str, ...] = ()
+    """The task's propositions that no letter read in the run made true (worlds learned
+    through the task wrapper; :mod:`mitlc.learn.held`)."""
 
 
 class Tally:

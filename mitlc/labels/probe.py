@@ -1,0 +1,169 @@
+"""Labels that read a value, checked against a running env: every ``attr`` path must exist on
+``env.unwrapped`` after ``reset``, every ``info`` path in the info of ``reset`` or of the first
+step, and the value found must suit its test (a number for ``below``/``above``, a vector long
+enough for ``box``/``disc``, one value for a truthy test). A path that meets ``None`` on the
+way (MiniGrid's ``carrying`` before anything is carried) cannot be checked further and is
+accepted.
+
+Each problem is a message that starts with the field's path (``labels.cliff[0].info: ...``),
+as :class:`~mitlc.labels.LabelDeclarationError` messages do, and says what was found.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from mitlc.labels.forms import Labeller
+from mitlc.labels.values import (
+    MISSING,
+    PUBLIC,
+    AttrPath,
+    Bound,
+    InfoPath,
+    Region,
+    Step,
+    Test,
+    Truthy,
+    Value,
+    number,
+    show_path,
+    step_into,
+    vector,
+)
+
+
+def _where(labeller: Labeller, proposition: str, i: int, field: str) -> str:
+    forms = labeller.forms[labeller.propositions.index(proposition)]
+    at = f"labels.{proposition}" + (f"[{i}]" if len(forms) > 1 else "")
+    return f"{at}.{field}"
+
+
+def attr_problems(labeller: Labeller, env: Any) -> list[str]:
+    """What is wrong with the ``attr`` paths of ``labeller`` on ``env`` (``env.unwrapped``,
+    after ``reset``)."""
+    found = []
+    for proposition, i, form in labeller.values():
+        if isinstance(form.source, AttrPath):
+            where = _where(labeller, proposition, i, "attr")
+            problem = _walk(env, form.source.steps, True, "env.unwrapped")
+            if problem is None:
+                problem = _suits(env, form)
+            if problem:
+                found.append(f"{where}: {problem}")
+    return found
+
+
+def info_problems(labeller: Labeller, infos: Sequence[Mapping[str, Any]]) -> list[str]:
+    """What is wrong with the ``info`` paths of ``labeller``: a path must be found in one of
+    ``infos`` (those of ``reset`` and of the first step), and its value suit its test."""
+    found = []
+    for proposition, i, form in labeller.values():
+        if not isinstance(form.source, InfoPath) or not infos:
+            continue
+        where = _where(labeller, proposition, i, "info")
+        problems = [_walk(info, form.source.steps, False, "info") for info in infos]
+        problem = next((p for p in problems if p is not None), None)
+        if None in problems:
+            problem = _suits(infos[problems.index(None)], form)
+        elif len(infos) > 1:
+            problem = f"{problem}, after reset or the first step"
+        if problem:
+            found.append(f"{where}: {problem}")
+    return found
+
+
+def info_paths_found(labeller: Labeller, info: Mapping[str, Any]) -> bool:
+    """Whether every ``info`` path of ``labeller`` is found in ``info``."""
+    return all(
+        _walk(info, form.source.steps, False, "info") is None
+        for _, _, form in labeller.values()
+        if isinstance(form.source, InfoPath)
+    )
+
+
+def _walk(root: Any, steps: Sequence[Step], attributes: bool, name: str) -> str | None:
+    """Why ``steps`` cannot be followed from ``root`` (``None``: they can, or they meet
+    ``None``, after which nothing can be checked)."""
+    value = root
+    for k, step in enumerate(steps):
+        if value is None:
+            return None
+        found = step_into(value, step, attributes)
+        if found is MISSING:
+            return _missing(value, step, attributes, name, show_path(steps[:k]))
+        value = found
+    if attributes and callable(value) and not isinstance(value, type):
+        return f"{name}.{show_path(steps)} is a method; name a value (an attribute holding data)"
+    return None
+
+
+def _missing(value: Any, step: Step, attributes: bool, name: str, done: str) -> str:
+    """What was found where ``step`` finds nothing in ``value``."""
+    where = f"{name}.{done}" if done else name
+    if isinstance(step, int):
+        size = len(value) if hasattr(value, "__len__") else None
+        kind = type(value).__name__
+        return f"index {step} is out of range at {where} (a {kind}" + (
+            f" of length {size})" if size is not None else ")"
+        )
+    if isinstance(value, Mapping):
+        keys = sorted(str(k) for k in value)
+        return f"{where} has no key {step!r}{_hint(step, keys)} (keys: {_listed(keys)})"
+    if not attributes:
+        return f"{where} is a {type(value).__name__}, not a mapping with key {step!r}"
+    names = sorted(n for n in dir(value) if PUBLIC.match(n))
+    return (f"{where} (a {type(value).__name__}) has no attribute {step!r}{_hint(step, names)} "
+            f"(attributes: {_listed(names)})")  # fmt: skip
+
+
+def _hint(step: str, names: list[str]) -> str:
+    close = difflib.get_close_matches(step, names, n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _listed(names: list[str], most: int = 12) -> str:
+    if not names:
+        return "none"
+    shown = ", ".join(names[:most])
+    return shown + (f", ... ({len(names)} in all)" if len(names) > most else "")
+
+
+def _suits(root: Any, form: Value) -> str | None:
+    """Why the value at the form's path does not suit its test (``None``: it does)."""
+    attributes = isinstance(form.source, AttrPath)
+    steps = form.source.steps if isinstance(form.source, AttrPath | InfoPath) else ()
+    value = root
+    for step in steps:
+        if value is None:
+            return None
+        value = step_into(value, step, attributes)
+    return test_problem(form.test, value)
+
+
+def test_problem(test: Test, value: Any) -> str | None:
+    """Why ``value`` cannot be given ``test`` (``None``: it can)."""
+    if value is None or value is MISSING:
+        return None
+    if isinstance(test, Bound) and number(value) is None:
+        return f"below/above need a number, found {_show(value)}"
+    if isinstance(test, Region):
+        x = vector(value)
+        if x is None:
+            return f"box/disc need a vector of numbers, found {_show(value)}"
+        need = max(test.index) + 1 if test.index else test.size
+        if (test.index and len(x) < need) or (not test.index and len(x) != need):
+            return (f"the region reads {need} numbers, found {len(x)}: {_show(value)} (give "
+                    "index to pick entries)")  # fmt: skip
+    if isinstance(test, Truthy):
+        x = vector(value) if not isinstance(value, str | bytes | Mapping) else None
+        if x is not None and len(x) > 1:
+            return (f"found a vector of {len(x)} numbers ({_show(value)}): give a test "
+                    "(equals, in, box, disc)")  # fmt: skip
+    return None
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

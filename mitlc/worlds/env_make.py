@@ -1,0 +1,151 @@
+"""Making the env a world file names: ``gymnasium.make(id, **kwargs)``, after importing the
+installed packages that register it, then the listed gymnasium wrappers in order.
+
+The trust model: a world file may make mitlc *import an installed module by its dotted name*,
+as ``gymnasium.make("module:EnvId")`` does, and nothing else runs code.
+
+* ``env.import: [minigrid, highway_env]`` imports those modules (whose import registers their
+  envs); ``env.id`` may also be gymnasium's ``"module:EnvId"``. A module is named by dotted
+  Python identifiers only (never a file path), found on ``sys.path`` as Python finds any
+  installed package (mitlc adds nothing to it), and an import that fails is an error naming
+  the field.
+* ``env.wrappers: ["minigrid.wrappers:ImgObsWrapper", {class: "module:Class", kwargs: {...}}]``
+  wraps the made env with each class in turn (before the task wrapper, which is outermost);
+  each must be a subclass of ``gymnasium.Wrapper``, and its arguments YAML values.
+* Ids that make another env named in their arguments (shimmy's compatibility layers) and
+  mitlc's own ids (``mitlc/...``, made from world files, not named in one) are refused.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import importlib
+import importlib.util
+import re
+import warnings
+from collections.abc import Iterator
+from typing import Any
+
+from mitlc.worlds.grid import FieldPath
+from mitlc.worlds.schema import Env, WrapperEntry
+
+ENV_ID: FieldPath = ("env", "id")
+
+WRAPPING = frozenset({"GymV21Environment-v0", "GymV26Environment-v0"})
+"""Registered ids that make another environment named in their arguments (shimmy's
+compatibility layers, which read an old gym id, ``module:Class`` included): refused, so that a
+world file makes only what gymnasium registers."""
+
+MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+"""A module's dotted name."""
+CLASS = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+"""A public class name."""
+
+
+class EnvMakeError(Exception):
+    """What went wrong making the env: (the field's path, a message) pairs; the callers turn
+    them into their own typed errors."""
+
+    def __init__(self, found: list[tuple[FieldPath, str]]) -> None:
+        self.found = found
+        super().__init__("; ".join(m for _, m in found))
+
+
+@contextlib.contextmanager
+def quiet() -> Iterator[None]:
+    """gymnasium's warnings (deprecations, the env checker's advice) silenced."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+def reason(err: BaseException) -> str:
+    """An exception in one line, without gymnasium's note on where it was raised."""
+    text = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    text = text.split(" was raised from the environment creator")[0]
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def import_named(name: str, where: FieldPath) -> Any:
+    """The installed module ``name`` (dotted identifiers), imported; an :class:`EnvMakeError`
+    at ``where`` if the name is not a module name, is not installed or fails to import."""
+    if not isinstance(name, str) or not MODULE.match(name):
+        message = (f"{name!r} is not a module's dotted name (such as minigrid or "
+                   "highway_env): a world file imports installed packages by name, never a "
+                   "file")  # fmt: skip
+        raise EnvMakeError([(where, message)])
+    try:
+        with quiet():
+            found = importlib.util.find_spec(name)
+    except (ImportError, ValueError) as err:
+        found, problem = None, reason(err)
+    else:
+        problem = ""
+    if found is None:
+        hint = f" ({problem})" if problem else " (pip install it, or check the name)"
+        raise EnvMakeError([(where, f"no installed module {name!r}{hint}")])
+    try:
+        with quiet():
+            return importlib.import_module(name)
+    except Exception as err:  # the module's own import may raise anything
+        raise EnvMakeError([(where, f"importing {name!r} failed: {reason(err)}")]) from None
+
+
+def make_env(settings: Env) -> Any:
+    """The env of ``settings`` (see the module docstring), made and wrapped; an
+    :class:`EnvMakeError` at the field at fault if it cannot be."""
+    with quiet():
+        import gymnasium
+    for i, module in enumerate(settings.imports):
+        import_named(module, ("env", "import", i))
+    env_id = settings.id
+    if ":" in env_id:
+        module, _, env_id = env_id.partition(":")
+        import_named(module, ENV_ID)
+    _check_id(env_id, gymnasium.registry)
+    try:
+        with quiet():
+            env = gymnasium.make(env_id, **settings.kwargs)
+    except Exception as err:  # the env's own constructor may raise anything
+        where: FieldPath = ("env", "kwargs") if settings.kwargs else ENV_ID
+        raise EnvMakeError([(where, f"{env_id} cannot be made: {reason(err)}")]) from None
+    for i, entry in enumerate(settings.wrappers):
+        env = _wrap(env, entry, ("env", "wrappers", i), gymnasium.Wrapper)
+    return env
+
+
+def _check_id(env_id: str, registry: Any) -> None:
+    if env_id.startswith("mitlc/"):
+        message = (f"{env_id} is mitlc's own: a world file is the task, so name the env it "
+                   "runs on")  # fmt: skip
+        raise EnvMakeError([(ENV_ID, message)])
+    if env_id not in registry:
+        close = difflib.get_close_matches(env_id, sorted(registry), n=1, cutoff=0.7)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        if not close and "-v" in env_id:
+            hint = "; if a package registers it, list it under env.import or write module:EnvId"
+        raise EnvMakeError([(ENV_ID, f"no gymnasium environment {env_id!r}{hint}")])
+    if env_id in WRAPPING:
+        message = f"{env_id} makes another environment by name; name that environment's id"
+        raise EnvMakeError([(ENV_ID, message)])
+
+
+def _wrap(env: Any, entry: WrapperEntry, where: FieldPath, base: type[Any]) -> Any:
+    """``env`` wrapped by the entry's class with its arguments."""
+    at: FieldPath = (*where, "class") if entry.kwargs else where
+    module_name, sep, class_name = entry.cls.partition(":")
+    if not sep or not CLASS.match(class_name):
+        raise EnvMakeError([(at, f"expected module:Class, got {entry.cls!r}")])
+    module = import_named(module_name, at)
+    cls = getattr(module, class_name, None)
+    if not (isinstance(cls, type) and issubclass(cls, base)) or cls is base:
+        what = ("not there" if cls is None else "a class" if isinstance(cls, type)
+                else f"a {type(cls).__name__}")  # fmt: skip
+        message = f"{module_name}.{class_name} is {what}, not a gymnasium.Wrapper subclass"
+        raise EnvMakeError([(at, message)])
+    try:
+        with quiet():
+            return cls(env, **entry.kwargs)
+    except Exception as err:  # the wrapper's own constructor may raise anything
+        raise EnvMakeError([(where, f"{entry.cls} cannot wrap the env: {reason(err)}")]) from None
