@@ -23,6 +23,7 @@ import difflib
 import importlib
 import importlib.util
 import re
+import sys
 import warnings
 from collections.abc import Iterator
 from typing import Any
@@ -86,7 +87,7 @@ def import_named(name: str, where: FieldPath) -> Any:
         hint = f" ({problem})" if problem else " (pip install it, or check the name)"
         raise EnvMakeError([(where, f"no installed module {name!r}{hint}")])
     try:
-        with quiet():
+        with quiet(), contextlib.redirect_stdout(sys.stderr):  # keep stdout for mitlc's output
             return importlib.import_module(name)
     except Exception as err:  # the module's own import may raise anything
         raise EnvMakeError([(where, f"importing {name!r} failed: {reason(err)}")]) from None
