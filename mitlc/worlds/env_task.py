@@ -80,27 +80,13 @@ def finite_env(path: str | Path) -> bool:
     path = Path(path)
     source = _mapping(path)
     world = _read_env(path, source)
-    if reads_env(world.labels):
+    if gym_world.reads_env(world.labels):
         return False
     env = _made(path, source, world.env)
     try:
         return gym_world.is_finite(env) and _has_start(env)
     finally:
         env.close()
-
-
-def reads_env(labels: dict[str, Any]) -> bool:
-    """Whether any of an env world file's labels reads more than the observation and the
-    step's events (an ``attr`` or ``info`` path): such labels cannot be tabulated over the
-    states of a finite env, so its world is learned through the task wrapper."""
-    from mitlc.labels import LabelDeclarationError, compile_labels
-    from mitlc.labels.values import AttrPath, InfoPath
-
-    try:
-        compiled = compile_labels(gym_world.declarations(labels))
-    except LabelDeclarationError:  # reported where the labels are checked
-        return False
-    return any(isinstance(f.source, AttrPath | InfoPath) for _, _, f in compiled.values())
 
 
 def _has_start(env: Any) -> bool:

@@ -307,6 +307,21 @@ def letters_of(labels: Mapping[str, Any], propositions: Sequence[str], n: int) -
 # --- the world -------------------------------------------------------------------------------
 
 
+def reads_env(labels: Mapping[str, Any]) -> str | None:
+    """The first label that reads more than the observation and the step's events (an
+    ``attr`` or ``info`` path), or ``None``: such labels cannot be tabulated over the states of
+    a finite env, so its world is learned through the task wrapper."""
+    from mitlc.labels import LabelDeclarationError, compile_labels
+    from mitlc.labels.values import AttrPath, InfoPath
+
+    try:
+        compiled = compile_labels(declarations(labels))
+    except LabelDeclarationError:  # reported where the labels are checked
+        return None
+    found = [p for p, _, f in compiled.values() if isinstance(f.source, AttrPath | InfoPath)]
+    return found[0] if found else None
+
+
 def has_events(labels: Mapping[str, Any]) -> bool:
     """Whether any label reads the step's events (its reward, its termination)."""
     from mitlc.labels import compile_labels
@@ -494,6 +509,12 @@ def build_world(
     be converted."""
     env_id = file.env.id
     require_finite(env, env_id)
+    reader = reads_env(file.labels)
+    if reader is not None:
+        message = ("reads the env's attributes or info, which the states of its transition "
+                   "table do not have: not a finite world, so there is no exact "
+                   "optimum to check; mitlc train learns it through the task wrapper")  # fmt: skip
+        raise NotFiniteError([(("labels", reader), message)])
     unwrapped = env.unwrapped
     n = _discrete(env.observation_space, "observation", env_id)
     m = _discrete(env.action_space, "action", env_id)
