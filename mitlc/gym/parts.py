@@ -5,20 +5,23 @@ and the env's own time limit (:func:`time_limit`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import numpy.typing as npt
 from gymnasium import spaces
+
+from mitlc.gym.observations import Readable, readable
 
 
 @dataclass(frozen=True, slots=True)
 class TaskObservation:
     """The wrapper's observation of the env's observation, the automaton state and the
     frontier: a ``Dict`` of the three (the env's part named ``env_key``), or with ``flatten``
-    one float32 ``Box``: the env's observation flattened (``gymnasium.spaces.flatten``), a
-    one-hot of the automaton state and the ``num_sets`` frontier bits."""
+    one float32 ``Box``: the readable part of the env's observation flattened
+    (:func:`mitlc.gym.observations.readable`: ``gymnasium.spaces.flatten``'s layout, text and
+    other parts without numbers left out), a one-hot of the automaton state and the
+    ``num_sets`` frontier bits."""
 
     env_space: spaces.Space[Any]
     env_key: str
@@ -27,13 +30,16 @@ class TaskObservation:
     flatten: bool
     space: spaces.Space[Any]
     env_dim: int = 0
+    readable: Readable | None = None
+    """The readable part of the env's observation (with ``flatten``)."""
 
     @staticmethod
     def of(
         env_space: spaces.Space[Any], env_key: str, num_q: int, num_sets: int, flatten: bool
     ) -> TaskObservation:
-        """The observation of an env with ``env_space`` (a ``ValueError`` when it cannot be
-        flattened as asked)."""
+        """The observation of an env with ``env_space`` (an
+        :class:`~mitlc.gym.observations.UnreadableObservation`, a ``ValueError``, when it is
+        flattened and has nothing a learner can read)."""
         if not flatten:
             space = spaces.Dict(
                 {
@@ -43,15 +49,13 @@ class TaskObservation:
                 }
             )
             return TaskObservation(env_space, env_key, num_q, num_sets, False, space)
-        flat = spaces.flatten_space(env_space)
-        if not isinstance(flat, spaces.Box):
-            raise ValueError(f"the env's observation space {env_space} is not flat")
-        dim = int(np.prod(flat.shape))
+        part = readable(env_space)
+        flat = part.space
         task = num_q + num_sets
-        low = np.concatenate([flat.low.reshape(-1), np.zeros(task)]).astype(np.float32)
-        high = np.concatenate([flat.high.reshape(-1), np.ones(task)]).astype(np.float32)
+        low = np.concatenate([flat.low, np.zeros(task)]).astype(np.float32)
+        high = np.concatenate([flat.high, np.ones(task)]).astype(np.float32)
         box = spaces.Box(low, high, dtype=np.float32)
-        return TaskObservation(env_space, env_key, num_q, num_sets, True, box, dim)
+        return TaskObservation(env_space, env_key, num_q, num_sets, True, box, part.size, part)
 
     def observe(self, obs: Any, q: int, frontier: int) -> Any:
         """The observation of the env's ``obs`` in automaton state ``q`` with ``frontier``."""
@@ -59,11 +63,8 @@ class TaskObservation:
             return {self.env_key: obs, "automaton": q, "frontier": frontier}
         dim = self.env_dim
         flat = np.zeros(dim + self.num_q + self.num_sets, dtype=np.float32)
-        space = self.env_space
-        if type(space) is spaces.Discrete:  # gymnasium's flatten: a one-hot (done here, fast)
-            flat[int(obs) - int(space.start)] = 1.0
-        else:
-            flat[:dim] = cast("npt.NDArray[Any]", spaces.flatten(space, obs))
+        assert self.readable is not None, "a flat observation has its readable part"
+        self.readable.write(obs, flat[:dim])
         flat[dim + q] = 1.0
         base = dim + self.num_q
         for k in range(self.num_sets):

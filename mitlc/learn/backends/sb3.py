@@ -5,7 +5,9 @@ sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc 
   :class:`~mitlc.gym.TaskWrapper` on the world) with the wrapper's flat observation: one
   float32 vector, the one-hot world observation, the one-hot automaton state and the frontier's
   bits (the layout of ``TaskWrapper(..., flatten=True)`` and of mitlc's own deep learners), so
-  every algorithm uses ``MlpPolicy`` (``MlpLstmPolicy`` for recurrent PPO). The ``Dict``
+  every algorithm uses ``MlpPolicy`` (``MlpLstmPolicy`` for recurrent PPO); where the env's
+  observation holds images, the policy reads each with a CNN first
+  (:mod:`mitlc.learn.backends.sb3_images`). The ``Dict``
   observation with ``MultiInputPolicy`` gives the network the same information (SB3 one-hot
   encodes each ``Discrete`` part) at a higher cost per step (PPO on case 1: 14% slower), so
   the flat form is used. ``sb3.num_envs`` copies run in SB3's ``DummyVecEnv`` (``make_vec_env``,
@@ -106,6 +108,18 @@ def wrapped_env(setting: Setting) -> Any:
     network),
     for every kind of world (:func:`mitlc.product.worlds.task_env`)."""
     return task_env(setting.world, setting.automaton, flatten=True)
+
+
+def model_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
+    """The keywords given to the SB3 algorithm learning on ``env`` (:func:`wrapped_env`):
+    :func:`sb3_settings`, with the features extractor of the images in ``env``'s observation
+    (:func:`mitlc.learn.backends.sb3_images.image_policy_kwargs`), which a checkpoint does not
+    hold (the world decides it)."""
+    from mitlc.learn.backends.sb3_images import image_policy_kwargs
+
+    given = sb3_settings(config)
+    given["policy_kwargs"] = {**given["policy_kwargs"], **image_policy_kwargs(env)}
+    return given
 
 
 def sb3_settings(config: TrainConfig) -> dict[str, Any]:
@@ -234,8 +248,10 @@ def _train(
         lambda: wrapped_env(setting), s.num_envs, seed=config.seed, vec_env_cls=DummyVecEnv
     )
     cls, policy = algorithm(config.algo)
+    assert isinstance(venv, DummyVecEnv)
+    given = model_settings(config, venv.envs[0])
     try:
-        model = cls(policy, venv, seed=config.seed, device="cpu", verbose=0, **sb3_settings(config))
+        model = cls(policy, venv, seed=config.seed, device="cpu", verbose=0, **given)
     except (ValueError, TypeError, AssertionError, MemoryError) as err:
         where = setting.world_path
         raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None

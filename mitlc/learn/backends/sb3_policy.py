@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from mitlc.learn.backends.sb3 import algorithm, sb3_settings, wrapped_env
+from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Learner, Policy
 from mitlc.learn.learners.nets import Encoder, build, configure_torch, greedy
@@ -159,7 +159,7 @@ def load_learner(directory: Path, setting: Setting) -> SB3Learner:
     configure_torch()
     cls, name = algorithm(setting.config.algo)
     env = wrapped_env(setting)
-    kwargs = sb3_settings(setting.config)["policy_kwargs"]
+    kwargs = model_settings(setting.config, env)["policy_kwargs"]
     net = build(0, lambda: cls.policy_aliases[name](
         env.observation_space, env.action_space, lambda _: 0.0, **kwargs
     ))  # fmt: skip

@@ -3,9 +3,12 @@ seen through :class:`VectorTask`.
 
 The vector env must be what :class:`mitlc.gym.TaskWrapper` makes of each env, batched:
 
-* a ``Dict`` single observation space with the env's own part (any space; a part that is not
-  ``Discrete`` or ``Box``, e.g. a ``Dict``, is flattened with ``gymnasium.spaces.flatten``),
-  ``automaton`` and ``frontier``; a ``Discrete`` single action space;
+* a ``Dict`` single observation space with the env's own part (any space: a ``Discrete`` one
+  is read as it is, any other as its readable part flattened, one vector per episode,
+  :func:`mitlc.gym.observations.readable`: a ``Box`` of any rank, ``Dict``, ``Tuple``,
+  ``MultiBinary``, ``MultiDiscrete``, nested, text and other parts without numbers left out,
+  images listed in :attr:`VectorTask.images`), ``automaton`` and ``frontier``; a ``Discrete``
+  single action space;
 * ended episodes restart in the same step (``AutoresetMode.SAME_STEP``): the observation an
   ended episode reached is in ``infos["final_obs"]`` and its last info in
   ``infos["final_info"]``, as gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv`` give them;
@@ -27,14 +30,14 @@ reached *before* an ended one restarted, with its return and length so far.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, cast
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
-from gymnasium.vector.utils import iterate
 
+from mitlc.gym.observations import ImagePart, Readable, readable
 from mitlc.learn.envs.vec import Step
 from mitlc.worlds.model import BoolArray, IntArray
 
@@ -72,14 +75,15 @@ class VectorTask:
         self.venv, self.num_envs = venv, int(venv.num_envs)
         self.env_key = next(k for k in space.spaces if k not in TASK_KEYS)
         own = space.spaces[self.env_key]
-        self._flatten = None if isinstance(own, spaces.Discrete | spaces.Box) else own
-        if self._flatten is not None:
-            own = spaces.flatten_space(own)
+        self.layout: Readable | None = None
+        """The readable part of the env's own observation, unless it is ``Discrete``."""
+        if not isinstance(own, spaces.Discrete):
+            self.layout = readable(own)
+            own = self.layout.space
         self.observation_space = spaces.Dict({self.env_key: own, **{
             k: space.spaces[k] for k in TASK_KEYS}})  # fmt: skip
-        """The single observation space as the learners read it (the env's part flattened
-        where it is not ``Discrete`` or ``Box``)."""
-        self._batched_own = cast("spaces.Dict", venv.observation_space)[self.env_key]
+        """The single observation space as the learners read it (the env's part a
+        ``Discrete`` or the flat ``Box`` of its readable part)."""
         self.num_actions = int(venv.single_action_space.n)
         self.returns = np.zeros(self.num_envs)
         self.steps = np.zeros(self.num_envs, dtype=np.int64)
@@ -87,6 +91,11 @@ class VectorTask:
         self._last: tuple[dict[str, Any], dict[str, Any], BoolArray] = (
             infos, {}, np.zeros(self.num_envs, dtype=np.bool_))  # fmt: skip
         self._take(obs, infos)
+
+    @property
+    def images(self) -> tuple[ImagePart, ...]:
+        """The image parts of the env's own observation as the learners read it."""
+        return self.layout.images if self.layout is not None else ()
 
     @property
     def envs(self) -> list[Any]:
@@ -215,19 +224,18 @@ class VectorTask:
 
     def _view(self, obs: dict[str, Any], *, copy: bool) -> tuple[Any, IntArray, IntArray]:
         own = obs[self.env_key]
-        if self._flatten is not None:
-            flat = [self._own_one(one) for one in iterate(self._batched_own, own)]
-            own = np.stack(flat)
-        elif copy:
+        if self.layout is not None:
+            own = self.layout.extract_batch(own, self.num_envs)
+        if copy and (self.layout is None or self.layout.lone_box):  # else already a new array
             own = np.array(own)
         automaton = np.array(obs["automaton"], dtype=np.int64, copy=copy)
         return own, automaton, np.array(obs["frontier"], dtype=np.int64, copy=copy)
 
     def _own_one(self, value: Any) -> Any:
         """One episode's own observation as the learners read it."""
-        if self._flatten is None:
+        if self.layout is None:
             return value
-        return np.asarray(spaces.flatten(self._flatten, value))
+        return self.layout.extract(value)
 
     def _all_valid(self) -> BoolArray:
         return np.ones((self.num_envs, self.num_actions), dtype=np.bool_)

@@ -3,15 +3,16 @@ reinforcement learning", Nature 2015), optionally Double DQN (van Hasselt, Guez 
 "Deep reinforcement learning with double Q-learning", AAAI 2016).
 
 The network maps what the agent sees (the cell, the automaton state and the frontier mask, see
-:class:`mitlc.learn.learners.nets.Encoder`) to a value per action. Acting is epsilon-greedy over the
-valid actions of each episode (the automaton state decides which epsilon jumps exist). Every
-transition of the batch goes to a uniform replay memory; every ``train_every`` vector steps a
-minibatch moves the network toward ``r + gamma * Q_target(next, best valid action)`` (0 after a
-terminal step; a truncated episode still bootstraps, as the horizon is not part of the state)
-under the Huber loss, with the gradient norm clipped; the target network copies the online one
-every ``target_update`` gradient steps. ``r`` and ``gamma`` are the learning signal of
-:func:`mitlc.learn.learners.base.learning_signal` (discount per transition, optional shaping), times
-``reward_scale``.
+:class:`mitlc.learn.learners.nets.Encoder`) to a value per action (an MLP, after a CNN of each
+image in the observation: :func:`mitlc.learn.learners.images.q_network`). Acting is
+epsilon-greedy over the valid actions of each episode (the automaton state decides which epsilon
+jumps exist). Every transition of the batch goes to a uniform replay memory; every
+``train_every`` vector steps a minibatch moves the network toward ``r + gamma * Q_target(next,
+best valid action)`` (0 after a terminal step; a truncated episode still bootstraps, as the
+horizon is not part of the state) under the Huber loss, with the gradient norm clipped; the
+target network copies the online one every ``target_update`` gradient steps. ``r`` and
+``gamma`` are the learning signal of :func:`mitlc.learn.learners.base.learning_signal`
+(discount per transition, optional shaping), times ``reward_scale``.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from mitlc.learn.learners.base import (
     transition_signal,
 )
 from mitlc.learn.learners.crm import Batch, Counterfactuals
+from mitlc.learn.learners.images import q_network
 from mitlc.learn.learners.nets import (
     Encoder,
     Ring,
@@ -48,7 +50,6 @@ from mitlc.learn.learners.nets import (
     greedy,
     huber,
     load_deep_state,
-    mlp,
     optimistic,
     tensors,
     torch_seed,
@@ -123,7 +124,7 @@ class DQNLearner(Learner):
             raise ValueError("a learner of any env needs the encoder and number of its actions")
         self.encoder, self.num_actions = encoder, num_actions
         self.net: torch.nn.Sequential = build(
-            torch_seed(rng), lambda: mlp(self.encoder.size, s.hidden, s.layers, self.num_actions)
+            torch_seed(rng), lambda: q_network(self.encoder, s.hidden, s.layers, self.num_actions)
         )
         if s.initial_value:
             optimistic(self.net[-1], s.initial_value * s.reward_scale)

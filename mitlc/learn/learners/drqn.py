@@ -36,6 +36,7 @@ from mitlc.learn.learners.base import (
     learning_signal,
     random_valid,
 )
+from mitlc.learn.learners.images import ImageFeatures, image_features
 from mitlc.learn.learners.nets import (
     Encoder,
     Ring,
@@ -57,13 +58,19 @@ from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
 class Recurrent(nn.Module):
-    """A ReLU layer, a GRU or LSTM, a linear head. The recurrent state is one tensor of shape
-    ``(batch, state_size)`` (an LSTM's ``h`` and ``c`` side by side)."""
+    """A ReLU layer (after the CNNs of the images in the inputs, with ``features``:
+    :mod:`mitlc.learn.learners.images`), a GRU or LSTM, a linear head. The recurrent state is
+    one tensor of shape ``(batch, state_size)`` (an LSTM's ``h`` and ``c`` side by side)."""
 
-    def __init__(self, inputs: int, hidden: int, actions: int, cell: str) -> None:
+    def __init__(
+        self, inputs: int, hidden: int, actions: int, cell: str,
+        features: ImageFeatures | None = None,
+    ) -> None:  # fmt: skip
         super().__init__()
         self.hidden, self.lstm = hidden, cell == "lstm"
-        self.embed = nn.Sequential(nn.Linear(inputs, hidden), nn.ReLU())
+        first = [] if features is None else [features]
+        width = inputs if features is None else features.out
+        self.embed = nn.Sequential(*first, nn.Linear(width, hidden), nn.ReLU())
         self.rnn: nn.GRU | nn.LSTM = (nn.LSTM if self.lstm else nn.GRU)(
             hidden, hidden, batch_first=True
         )
@@ -83,7 +90,9 @@ class Recurrent(nn.Module):
 
     def burn(self, x: torch.Tensor, state: torch.Tensor, live: torch.Tensor) -> torch.Tensor:
         """The state after reading the steps of ``x`` where ``live`` ``(batch, time)`` holds
-        (the others, before an episode's start, leave it as it is)."""
+        (the others, before an episode's start, leave it as it is; no burn-in: as it is)."""
+        if x.shape[1] == 0:
+            return state
         whole = live.all(dim=1)
         if bool((whole | ~live.any(dim=1)).all()):  # each row all or nothing: one call
             _, after = self(x, state)
@@ -208,7 +217,10 @@ class DRQNLearner(Learner):
         self.num_envs, num_a = s.num_envs, num_actions
         self.encoder = encoder
         self.net: Recurrent = build(
-            torch_seed(rng), lambda: Recurrent(self.encoder.size, s.hidden, num_a, s.cell)
+            torch_seed(rng),
+            lambda: Recurrent(
+                self.encoder.size, s.hidden, num_a, s.cell, image_features(self.encoder)
+            ),
         )
         if s.initial_value:
             optimistic(self.net.head, s.initial_value * s.reward_scale)

@@ -11,12 +11,14 @@ from a seed drawn from that generator, without touching torch's global random st
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 import numpy as np
 import torch
 from torch import nn
 
+from mitlc.gym.observations import ImagePart
 from mitlc.learn.envs.vec import Tables
 from mitlc.worlds.model import BoolArray, IntArray
 
@@ -78,6 +80,7 @@ class Encoder:
         previous_action: bool = False,
         tiles: int = 0,
         scaled: bool = True,
+        images: Sequence[ImagePart] = (),
     ) -> Encoder:
         """An encoder of a wrapped env's observations: its own part a ``Discrete`` space
         (one-hot) or a ``Box``: the values of its bounded axes scaled to [0, 1] by the bounds,
@@ -85,7 +88,9 @@ class Encoder:
         (every axis bounded), also a one-hot of the tile the values fall in, each axis cut
         into ``tiles`` (tile coding, Sutton and Barto, *Reinforcement Learning*, 2nd ed.,
         Sect. 9.5.4). ``scaled=False`` reads every axis as it is: the layout of
-        :class:`mitlc.gym.TaskWrapper`'s flat observation, which SB3's networks learn on."""
+        :class:`mitlc.gym.TaskWrapper`'s flat observation, which SB3's networks learn on.
+        ``images``: the Box's image parts (:attr:`mitlc.learn.envs.envvec.VectorTask.images`),
+        which the networks read with a CNN (:mod:`mitlc.learn.learners.images`)."""
         encoder = cls.__new__(cls)
         encoder.automaton = None
         if hasattr(observation, "n"):
@@ -105,10 +110,14 @@ class Encoder:
         encoder._layout(len(low) + cells, (low, np.maximum(high - low, 1e-9)),
                         num_automaton_states, num_sets, num_actions, previous_action)  # fmt: skip
         encoder.tiles, encoder.box_width = tiles, len(low)
+        encoder.images, encoder.image_scale = tuple(images), 1.0 if scaled else 1.0 / 255
         return encoder
 
     tiles = 0
     box_width = 0
+    images: tuple[ImagePart, ...] = ()
+    image_scale = 1.0
+    """What turns an image's values in the features into [0, 1] (scaled: by the bounds)."""
 
     def _layout(
         self,

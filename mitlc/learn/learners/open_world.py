@@ -3,7 +3,9 @@ env without a transition table (``env:``, :mod:`mitlc.worlds.env_task`).
 
 There is no product: the learner steps a :class:`mitlc.learn.envs.envvec.VectorTask` of the world's
 wrapped envs (:func:`mitlc.learn.setting.task_vector_of`): DQN or the recurrent DQN on any
-observation (:meth:`mitlc.learn.learners.nets.Encoder.of_spaces`), or tabular Q-learning where the
+observation (its readable part, :func:`mitlc.gym.observations.readable`, through
+:meth:`mitlc.learn.learners.nets.Encoder.of_spaces`; images through a CNN,
+:mod:`mitlc.learn.learners.images`), or tabular Q-learning where the
 env's
 observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). The run
 directory, metrics and checkpoints are those of every run (:mod:`mitlc.learn.run`). A
@@ -67,6 +69,7 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         probe.num_actions,
         previous_action=recurrent and config.drqn.previous_action,
         tiles=config.drqn.tiles if recurrent else config.dqn.tiles,
+        images=probe.images,
     )
     if recurrent:
         from mitlc.learn.learners.drqn import DRQNLearner
