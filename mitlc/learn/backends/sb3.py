@@ -51,6 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from mitlc.learn.config import TrainConfig
+from mitlc.learn.held import held_of, never_held
 from mitlc.learn.learners.nets import configure_torch
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import METRICS, SUMMARY, RunError, locked
@@ -280,12 +281,18 @@ def _train(
     finally:
         run.save()
     stopped = run.stopped and tally.steps < s.steps
+    unseen = () if setting.finite else never_held(setting.automaton.propositions,
+                                                   held_of(venv.envs))  # fmt: skip
     if not stopped:
         summary: dict[str, Any] = {"episodes": tally.episodes, "steps": tally.steps}
         summary.update(seconds=round(tally.seconds, 3), success_rate=tally.last_rate)
         summary["mean_return"] = tally.last_return
+        if unseen:
+            summary["never_held"] = list(unseen)
         write_json(directory / SUMMARY, summary)
-    return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped)
+    return RunResult(
+        directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen
+    )
 
 
 UNCHECKED = ("model.optimizer.state",)

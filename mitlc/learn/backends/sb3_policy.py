@@ -16,10 +16,11 @@ MDP also gets its exact success probability (:meth:`SB3Policy.choices`).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
+from gymnasium import spaces
 
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
 from mitlc.learn.envs.vec import Step
@@ -44,6 +45,10 @@ class SB3Policy(Policy):
         self.net, self.encoder = net, encoder
         self.tables = setting.tables if isinstance(setting, Setting) else None
         self.dqn = setting.config.algo == "sb3-dqn"
+        space = getattr(net, "action_space", None)
+        self.bounds = (space.low, space.high) if isinstance(space, spaces.Box) else None
+        """A continuous action space's bounds: the policy acts with its distribution's mode,
+        clipped to them (SB3's ``predict(deterministic=True)``)."""
 
     def scores(self, x: torch.Tensor) -> torch.Tensor:
         """Q-values (DQN) or action logits of the observation vectors ``x``."""
@@ -54,9 +59,12 @@ class SB3Policy(Policy):
         return logits
 
     def act(self, env: Episodes) -> IntArray:
-        """The greedy valid action of each episode."""
+        """The greedy valid action of each episode (continuous actions: the mode, clipped)."""
         x = self.encoder(env.observation, env.automaton, env.mask)
         with torch.no_grad():
+            if self.bounds is not None:
+                mode = self.net.get_distribution(x).mode().numpy()
+                return cast("IntArray", np.clip(mode, *self.bounds))
             return greedy(self.scores(x), env.valid_actions())
 
     def choices(self) -> IntArray:

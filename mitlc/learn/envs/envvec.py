@@ -30,7 +30,7 @@ reached *before* an ended one restarted, with its return and length so far.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -65,9 +65,9 @@ class VectorTask:
         space = venv.single_observation_space
         if not isinstance(space, spaces.Dict) or not set(TASK_KEYS) <= set(space.spaces):
             raise ValueError(f"not a task-wrapped env's observation space: {space}")
-        if not isinstance(venv.single_action_space, spaces.Discrete):
-            raise ValueError(f"the learners need a Discrete action space, not "
-                             f"{venv.single_action_space}")  # fmt: skip
+        actions = venv.single_action_space
+        if not isinstance(actions, spaces.Discrete | spaces.Box):
+            raise ValueError(f"the learners need a Discrete or Box action space, not {actions}")
         mode = venv.metadata.get("autoreset_mode")
         if mode != AutoresetMode.SAME_STEP:
             raise ValueError(f"the learners need same-step restarts (AutoresetMode.SAME_STEP), "
@@ -84,7 +84,10 @@ class VectorTask:
             k: space.spaces[k] for k in TASK_KEYS}})  # fmt: skip
         """The single observation space as the learners read it (the env's part a
         ``Discrete`` or the flat ``Box`` of its readable part)."""
-        self.num_actions = int(venv.single_action_space.n)
+        self.continuous = isinstance(actions, spaces.Box)
+        """Box actions (for SB3's policies): no discrete actions, so :meth:`valid_actions` has
+        no columns."""
+        self.num_actions = 0 if self.continuous else int(cast("spaces.Discrete", actions).n)
         self.returns = np.zeros(self.num_envs)
         self.steps = np.zeros(self.num_envs, dtype=np.int64)
         obs, infos = venv.reset(seed=seed)

@@ -51,6 +51,10 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
     space = probe.observation_space
     own = space[probe.env_key]
     num_q = int(cast("Discrete", space["automaton"]).n)
+    if probe.continuous:
+        actions = probe.venv.single_action_space
+        raise RunError(f"{config.algo} takes Discrete actions, and this env's are {actions}: "
+                       "use --algo sb3-ppo")  # fmt: skip
     if config.algo == "q":
         if not isinstance(own, Discrete):
             raise RunError(f"tabular Q-learning needs a discrete observation, not {own}: use "

@@ -122,8 +122,20 @@ def conform(
             raise Mismatch(where, f"expected a {wanted}, found {_kind(saved)}{size}")
         for i, (a, b) in enumerate(zip(saved, template, strict=True)):
             conform(a, b, f"{where}[{i}]", rows=rows, unchecked=unchecked)
-    elif type(saved) is not type(template):
+    elif type(saved) is not type(template) and _scalar_kind(saved) != _scalar_kind(template):
         raise Mismatch(where, f"expected {_kind(template)}, found {_kind(saved)}")
+
+
+def _scalar_kind(value: Any) -> str | None:
+    """A scalar's kind, numpy's and Python's alike (JSON keeps no numpy scalar type: a saved
+    ``numpy.int64`` comes back an ``int``): ``"bool"``, ``"int"``, ``"float"`` or ``None``."""
+    if isinstance(value, bool | np.bool_):
+        return "bool"
+    if isinstance(value, int | np.integer):
+        return "int"
+    if isinstance(value, float | np.floating):
+        return "float"
+    return None
 
 
 def _same_array(saved: Any, template: np.ndarray[Any, Any], where: str, any_rows: bool) -> None:
