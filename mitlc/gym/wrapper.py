@@ -4,7 +4,10 @@ The wrapper defines no rule of the task: every automaton step, frontier update, 
 verdict, termination and success is :class:`mitlc.task.TaskMonitor`'s. What it adds is the
 plumbing between the monitor and the environment:
 
-* **Letters.** Position 0 is the observation ``reset`` returns. On a world action the monitor
+* **Letters.** Position 0 is the observation ``reset`` returns. Labels read ``(obs, info)`` and
+  the :class:`~mitlc.labels.Moment`: ``env.unwrapped`` and the reward and termination of the
+  step that reached the position (paths checked at the first reset and step:
+  :mod:`mitlc.labels.probe`); ``held`` or-s every letter read. On a world action the monitor
   reads the letter of the position being *left* (the labels of the current ``obs``/``info``),
   then the environment steps and the new letter is remembered for the next step; so a verdict
   shows one step after arrival (the convention of the explicit product).
@@ -15,8 +18,10 @@ plumbing between the monitor and the environment:
   :class:`~mitlc.automata.DigitalAutomaton` (or ``max_automaton_states``, if larger); any other
   (lazy) automaton needs ``max_automaton_states``, and a run that reaches a state past it, or a
   state with more jumps than ``max_jumps`` (default 0), raises :class:`TaskWrapperError`.
-  With ``flatten=True``: one float32 ``Box``, the ``gymnasium.spaces.flatten`` of the env's
-  observation, a one-hot of the automaton state and the ``num_sets`` frontier bits. The env's
+  With ``flatten=True``: one float32 ``Box``, the readable part of the env's observation
+  flattened as ``gymnasium.spaces.flatten`` does (text parts left out:
+  :mod:`mitlc.gym.observations`), a one-hot of the automaton state and the ``num_sets``
+  frontier bits. The env's
   part is named ``env_key`` (``"env"``; the grid product names it ``"world"``).
 * **Actions.** The env's. If the automaton has epsilon jumps (``J`` at most from a state), the
   env's action space must be ``Discrete(n)`` and becomes ``Discrete(n + J)``: action ``n + j``
