@@ -34,6 +34,14 @@ def never_held(propositions: Sequence[str], mask: int) -> tuple[str, ...]:
     return tuple(p for i, p in enumerate(propositions) if not mask >> i & 1)
 
 
+def run_never_held(
+    finite: bool, propositions: Sequence[str], envs: Iterable[Any]
+) -> tuple[str, ...]:
+    """A run's propositions that never held in its wrapped ``envs`` (none on a finite world,
+    which refuses a proposition that holds in no state when it is loaded)."""
+    return () if finite else never_held(propositions, held_of(envs))
+
+
 def never_held_note(names: Sequence[str], episodes: int, steps: int | None = None) -> str:
     """One line for the user: which labels never held, over how many episodes."""
     listed = ", ".join(f"`{p}`" for p in names)

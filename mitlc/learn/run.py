@@ -36,7 +36,7 @@ import numpy as np
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.envs.envvec import VectorTask
 from mitlc.learn.envs.vector import ProductVectorEnv
-from mitlc.learn.held import held_of, never_held
+from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.base import Learner, automaton_potential, potential
 from mitlc.learn.learners.open_world import make_open_learner
 from mitlc.learn.rundir import checkpoint
@@ -274,8 +274,7 @@ def _train(
     finally:
         metrics.close()
         save()
-    unseen = () if setting.finite else never_held(setting.automaton.propositions,
-                                                   held_of(env.envs))  # fmt: skip
+    unseen = run_never_held(setting.finite, setting.automaton.propositions, env.envs)
     if not stopped:
         summary: dict[str, Any] = {
             "episodes": tally.episodes,

@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from mitlc.learn.config import TrainConfig
-from mitlc.learn.held import held_of, never_held
+from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.nets import configure_torch
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import METRICS, SUMMARY, RunError, locked
@@ -281,8 +281,7 @@ def _train(
     finally:
         run.save()
     stopped = run.stopped and tally.steps < s.steps
-    unseen = () if setting.finite else never_held(setting.automaton.propositions,
-                                                   held_of(venv.envs))  # fmt: skip
+    unseen = run_never_held(setting.finite, setting.automaton.propositions, venv.envs)
     if not stopped:
         summary: dict[str, Any] = {"episodes": tally.episodes, "steps": tally.steps}
         summary.update(seconds=round(tally.seconds, 3), success_rate=tally.last_rate)
