@@ -335,13 +335,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         """Reset the env and start the task's run at its position 0."""
         obs, info = self.env.reset(seed=seed, options=options)
         self._env_obs, self._env_info = obs, info
-        if self._moment:
-            if self._probe is not None:
-                self._check_labels(info, reset=True)
-            self._letter = self._read(obs, info, Moment(self._unwrapped))
-        else:
-            self._letter = self._read(obs, info)
-        self.held |= self._letter
+        self._take_letter(obs, info, None, False)
         self._state = state = self.monitor.reset()
         self._done = self._ended = False
         verdict = self.monitor.verdict(state.q)
@@ -368,14 +362,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         else:
             obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
             self._env_obs, self._env_info = obs, env_info
-            if self._moment:
-                if self._probe is not None:
-                    self._check_labels(env_info, reset=False)
-                moment = Moment(self._unwrapped, float(env_reward), bool(inner_terminated))
-                self._letter = self._read(obs, env_info, moment)
-            else:
-                self._letter = self._read(obs, env_info)
-            self.held |= self._letter
+            self._take_letter(obs, env_info, float(env_reward), bool(inner_terminated))
             if self._add:
                 reward += float(env_reward)
             if inner_terminated or inner_truncated:
@@ -430,6 +417,19 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return self._observation(self._env_obs, state), out.reward, out.terminated, truncated, info
 
     # -- internals -----------------------------------------------------------------------------
+
+    def _take_letter(
+        self, obs: Any, info: dict[str, Any], reward: float | None, terminated: bool
+    ) -> None:
+        """Read the letter of the position ``reset`` (``reward`` None) or a step reached, with
+        the moment where the labels read one, and or it into :attr:`held`."""
+        if self._moment:
+            if self._probe is not None:
+                self._check_labels(info, reset=reward is None)
+            self._letter = self._read(obs, info, Moment(self._unwrapped, reward, terminated))
+        else:
+            self._letter = self._read(obs, info)
+        self.held |= self._letter
 
     def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
         """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``

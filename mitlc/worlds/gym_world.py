@@ -307,28 +307,32 @@ def letters_of(labels: Mapping[str, Any], propositions: Sequence[str], n: int) -
 # --- the world -------------------------------------------------------------------------------
 
 
+def _sources(labels: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """Each label form that reads a value, as (its proposition, its source); none for labels
+    that do not compile (reported where the labels are checked)."""
+    from mitlc.labels import LabelDeclarationError, compile_labels
+
+    try:
+        compiled = compile_labels(declarations(labels))
+    except LabelDeclarationError:
+        return []
+    return [(p, f.source) for p, _, f in compiled.values()]
+
+
 def reads_env(labels: Mapping[str, Any]) -> str | None:
     """The first label that reads more than the observation and the step's events (an
     ``attr`` or ``info`` path), or ``None``: such labels cannot be tabulated over the states of
     a finite env, so its world is learned through the task wrapper."""
-    from mitlc.labels import LabelDeclarationError, compile_labels
     from mitlc.labels.values import AttrPath, InfoPath
 
-    try:
-        compiled = compile_labels(declarations(labels))
-    except LabelDeclarationError:  # reported where the labels are checked
-        return None
-    found = [p for p, _, f in compiled.values() if isinstance(f.source, AttrPath | InfoPath)]
-    return found[0] if found else None
+    return next((p for p, src in _sources(labels) if isinstance(src, AttrPath | InfoPath)), None)
 
 
 def has_events(labels: Mapping[str, Any]) -> bool:
     """Whether any label reads the step's events (its reward, its termination)."""
-    from mitlc.labels import compile_labels
     from mitlc.labels.values import StepReward, StepTerminated
 
-    compiled = compile_labels(declarations(labels))
-    return any(isinstance(f.source, StepReward | StepTerminated) for _, _, f in compiled.values())
+    return any(isinstance(src, StepReward | StepTerminated) for _, src in _sources(labels))
 
 
 def _split(
