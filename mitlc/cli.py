@@ -51,9 +51,6 @@ app = typer.Typer(
 )
 
 
-
-
-
 @app.command()
 @reports_errors
 def fmt(spec: SpecArg = None, expr: ExprOpt = None) -> None:
@@ -144,8 +141,7 @@ def _compile_batch(path: Path, fmt: Format, max_states: int, deadline: Deadline)
     from mitlc.automata.hoa import to_hoa_stream
 
     compiled = [
-        compile_formula(f, max_states=max_states, deadline=deadline)
-        for f in parse_batch_file(path)
+        compile_formula(f, max_states=max_states, deadline=deadline) for f in parse_batch_file(path)
     ]
     if fmt is Format.hoa:
         return to_hoa_stream(c.digital for c in compiled)

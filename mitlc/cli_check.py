@@ -42,10 +42,11 @@ def check_command(
     expr: TaskExprOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
     policy: Annotated[
-        Path | None, typer.Option(
+        Path | None,
+        typer.Option(
             "--policy",
             help="Write the optimal policy (JSON) here; for a POMDP, the observation-based one.",
-        )
+        ),
     ] = None,
     export_drn: Annotated[
         Path | None, typer.Option("--export-drn", help="Write the product in Storm's DRN format.")

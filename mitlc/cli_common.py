@@ -103,6 +103,8 @@ MaxStatesOpt = Annotated[
         "--max-states", min=1, help="Stop a translation that grows past this many states."
     ),
 ]
+
+
 def time_limit_option(
     help: str = "Stop the command after this many seconds (0: no limit).",
 ) -> Any:

@@ -21,7 +21,7 @@ from mitlc.cli_common import (
     task_formula,
     time_limit_option,
 )
-from mitlc.learn.names import ALGORITHMS
+from mitlc.learn.names import ALGORITHMS, DEVICES
 from mitlc.learn.names import MAX_EVAL_EPISODES as MAX_EVAL
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline
 
@@ -32,7 +32,11 @@ RunArg = Annotated[Path, typer.Argument(metavar="RUN", help="A run directory (mi
 
 
 def _overrides(
-    pairs: list[str], algo: str | None, seed: int | None, episodes: int | None
+    pairs: list[str],
+    algo: str | None,
+    seed: int | None,
+    episodes: int | None,
+    device: str | None = None,
 ) -> dict[str, Any]:
     from mitlc.learn.rundir.files import RunError
 
@@ -43,6 +47,7 @@ def _overrides(
             raise RunError(f"--set {pair!r}: expected KEY=VALUE, e.g. --set q.alpha=0.2")
         values[key.strip()] = value.strip()
     given: dict[str, object] = {"algo": algo, "seed": seed, "episodes": episodes}
+    given["device"] = device
     values.update({name: v for name, v in given.items() if v is not None})
     return values
 
@@ -130,6 +135,14 @@ def train_command(
         list[str] | None,
         typer.Option("--set", metavar="KEY=VALUE", help="A training setting, e.g. q.alpha=0.2."),
     ] = None,
+    device: Annotated[
+        str | None,
+        typer.Option(
+            "--device",
+            help=f"Where torch trains: {', '.join(DEVICES)} (default: the world file's, else "
+            "auto: CUDA where torch sees it, else the CPU). A resumed run may change it.",
+        ),
+    ] = None,
     evaluate_after: Annotated[
         bool, typer.Option("--eval/--no-eval", help="Evaluate the policy at the end.")
     ] = True,
@@ -148,15 +161,18 @@ def train_command(
     from mitlc.learn.rundir.files import RunError
     from mitlc.learn.setting import CONFIG, read_config
 
+    overrides = _overrides(settings or [], algo, seed, episodes, device)
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
-        config, name = config_for(
-            world_file, {**_flatten(saved), **_overrides(settings or [], algo, seed, episodes)}
-        )
+        config, name = config_for(world_file, {**_flatten(saved), **overrides})
     else:
-        config, name = config_for(world_file, _overrides(settings or [], algo, seed, episodes))
+        config, name = config_for(world_file, overrides)
     if resume and out is None:
         raise RunError("--resume needs --out: the run directory to continue")
+    if config.device == "cuda":  # a machine without CUDA: say so before the set-up
+        from mitlc.learn.device import resolve_device
+
+        resolve_device(config.device)
     directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"
     formula = None
     override = task_formula(spec, expr)

@@ -23,7 +23,7 @@ from mitlc.learn.evaluation.exact import policy_success  # noqa: E402
 from mitlc.learn.learners.base import Learner, Policy  # noqa: E402
 from mitlc.learn.learners.dqn import DQNLearner, DQNPolicy  # noqa: E402
 from mitlc.learn.learners.drqn import DRQNLearner  # noqa: E402
-from mitlc.learn.learners.nets import Encoder  # noqa: E402
+from mitlc.learn.learners.encoder import Encoder  # noqa: E402
 from mitlc.learn.run import RunError, Setting, load_learner, make_learner, prepare, train  # noqa: E402
 from mitlc.learn.rundir import checkpoint  # noqa: E402
 from tests.conftest import TINY_DRQN  # noqa: E402

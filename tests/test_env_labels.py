@@ -309,12 +309,14 @@ def test_event_labels_agree_between_wrapper_simulator_and_exact(seed: int) -> No
 def test_cliffwalking_with_the_cliff_as_an_event(tmp_path: Path) -> None:
     """The cliff is never a state CliffWalking is in: as an event, a finite world checks it."""
     path = tmp_path / "cliff.yaml"
-    path.write_text(textwrap.dedent("""\
+    path.write_text(
+        textwrap.dedent("""\
         env: {id: CliffWalking-v1}
         labels: {goal: {obs: [47]}, cliff: {reward: {below: -50}}}
         spec: {formula: "!cliff U[0,20] goal"}
         horizon: 25
-    """))
+    """)
+    )
     w = load_world(path)
     start = w.cells[w.start]
     fell = [s for s, c in enumerate(w.cells) if c == start and w.letters[s]]

@@ -13,7 +13,7 @@ from mitlc.gym import TaskWrapper
 from mitlc.learn.config import resolve
 from mitlc.learn.envs.envvec import VectorTask, task_vector
 from mitlc.learn.learners.dqn import DQNLearner
-from mitlc.learn.learners.nets import Encoder
+from mitlc.learn.learners.encoder import Encoder
 from mitlc.worlds.load import load_plane_world
 from mitlc.worlds.plane_env import make_plane_env
 
@@ -216,36 +216,30 @@ def test_tile_coding_adds_the_one_hot_of_the_tile() -> None:
     assert encoder.observation_field == ((2,), np.float32)
 
 
-def test_shaping_reads_the_automaton_state_without_a_product(tmp_path: Path) -> None:
-    """Without product states the shaping potential is the automaton state's (0 at an
-    episode's end), and on a finite product it is the same potential, state by state."""
-    from mitlc.automata import translate
-    from mitlc.learn.learners.base import automaton_potential, learning_signal, potential
-    from mitlc.learn.run import prepare
-    from mitlc.syntax import parse
-    from tests.conftest import ROOT
+def test_shaping_reads_the_wrappers_potential_without_a_product(tmp_path: Path) -> None:
+    """Without product states the shaping reads the potential the task wrapper reports (0 at
+    an episode's end where the task is decided): the reward is shaped by the one rule."""
+    from mitlc.learn.learners.base import EnvShaping, learning_signal
+    from mitlc.worlds.plane_env import plane_task
 
     path = tmp_path / "corridor.yaml"
     path.write_text(CORRIDOR)
-    automaton = translate(parse("F[0,6] goal"))
-    phi = automaton_potential(automaton, 2.0)
-    vector = task_vector([make_plane_env(path) for _ in range(3)], seed=0)
+    world = load_plane_world(path)
+    vector = task_vector([plane_task(world, potential=0.0) for _ in range(3)], seed=0)
     config = resolve({}, {"shaping": 2.0}, discount=0.9, pomdp=False)
-    right = 1
-    for _ in range(5):
-        before = vector.automaton
+    shaping = EnvShaping(2.0)
+    right, seen = 1, 0
+    for _ in range(8):
+        before = shaping.before(vector)
+        assert (before < 0).all()  # still pending: some distance to go
         step = vector.step(np.full(3, right))
-        reward, gammas = learning_signal(step, before, config, phi)
-        assert step.next_automaton is not None
-        after = np.where(step.terminated, 0.0, phi[step.next_automaton])
-        expected = step.reward + gammas * after - phi[before]
+        reward, gammas = learning_signal(step, before, config, shaping)
+        assert step.next_potential is not None
+        expected = step.reward + gammas * 2.0 * step.next_potential - before
         assert reward.tolist() == pytest.approx(expected.tolist())
-    setting = prepare(ROOT / "specs" / "paper" / "case1.yaml", config)
-    by_state = automaton_potential(setting.automaton, 2.0)
-    product_phi = potential(setting.tables, setting.automaton, 2.0)
-    live = setting.tables.world_state >= 0
-    assert (product_phi[live] == by_state[setting.tables.automaton_state[live]]).all()
-    assert (product_phi[~live] == 0.0).all() and by_state[-1] == 0.0
+        assert (step.next_potential[step.terminated] == 0.0).all()
+        seen += int(step.terminated.sum())
+    assert seen > 0
 
 
 def test_the_learners_read_an_async_vector_env_as_a_sync_one() -> None:

@@ -20,9 +20,15 @@ PAPER = ROOT / "specs" / "paper"
 
 
 def check_simulates(translation: Translation, timed: Tldgba) -> int:
+    """:func:`simulate`; the number of pairs visited."""
+    return len(simulate(translation, timed))
+
+
+def simulate(translation: Translation, timed: Tldgba) -> dict[tuple[int, tuple[int, ...]], int]:
     """Run the T-LDGBA (clock semantics of DESIGN.md) in lockstep with the digital automaton
     from their initial states; every reachable (location, valuation) must stand for one digital
-    state, with the same successors, marks and jumps. Returns the pairs visited."""
+    state, with the same successors, marks and jumps. Returns the digital state each
+    (location, values of its clocks) visited stands for."""
     digital = translation.automaton
     start = (timed.initial, tuple(0 for _ in timed.clock_bounds))
     stands_for: dict[tuple[int, tuple[int, ...]], int] = {}
@@ -49,7 +55,7 @@ def check_simulates(translation: Translation, timed: Tldgba) -> int:
             sorted(jumps, key=lambda j: j.target), sorted(digital_jumps), strict=False
         ):
             queue.append(((jump.target, timed.advance(jump, valuation)), target))
-    return len(stands_for)
+    return stands_for
 
 
 def check_complete(timed: Tldgba) -> None:

@@ -18,12 +18,13 @@ from mitlc.learn.envs.vec import Step, VecProduct, tables
 from mitlc.learn.evaluation.evaluate import evaluate
 from mitlc.learn.evaluation.exact import policy_success
 from mitlc.learn.evaluation.montecarlo import monte_carlo, wilson
-from mitlc.learn.learners.base import automaton_distance, potential, step_discounts
+from mitlc.learn.learners.base import product_potential, step_discounts
 from mitlc.learn.learners.qlearning import QLearner, TabularPolicy
 from mitlc.learn.run import RunError, prepare, train
 from mitlc.learn.setting import batches
 from mitlc.product.explicit import Product, build_product
 from mitlc.syntax import parse, to_text
+from mitlc.task.potential import automaton_distance
 from mitlc.worlds import Sparse, load_world
 from mitlc.worlds.model import IntArray
 from tests.conftest import ROOT
@@ -229,8 +230,11 @@ def test_distance_to_acceptance() -> None:
     assert all(distance[q] == distance.max() for q in violated)
     world = random_world(random.Random(2), "(!a U[2,3] a)")
     product = build_product(world, automaton)
-    phi = potential(tables(product, world), automaton, 2.0)
-    assert phi[0] == phi[1] == 0.0 and phi[product.initial] == -6.0
+    phi = product_potential(tables(product, world), world, automaton, 2.0)
+    assert phi[0] == phi[1] == 0.0
+    # three letters from acceptance, at most half a step more for the world's distance to a,
+    # nothing yet of the deadline spent
+    assert -6.0 - 1.0 <= phi[product.initial] <= -6.0
 
 
 # -- tabular Q-learning, runs, evaluation ------------------------------------------------------

@@ -23,8 +23,8 @@ from mitlc.learn.envs.envvec import VectorTask, task_vector
 from mitlc.learn.learners.base import Learner
 from mitlc.learn.learners.dqn import DQNLearner
 from mitlc.learn.learners.drqn import DRQNLearner
+from mitlc.learn.learners.encoder import Encoder
 from mitlc.learn.learners.images import NATURE_FEATURES, SMALL_FEATURES, ImageCNN, ImageFeatures
-from mitlc.learn.learners.nets import Encoder
 
 SPEC, LABELS = "F[0,5] goal", {"goal": {"info": "goal"}}
 IMAGE = spaces.Box(0, 255, (7, 7, 3), np.uint8)

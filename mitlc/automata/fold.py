@@ -235,12 +235,25 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
     no clocks. ``deadline`` (none by default) stops a folding that runs past its time limit
     with :class:`mitlc.limits.LimitError`.
     """
+    return fold_points(translation, deadline=deadline)[0]
+
+
+Point = tuple[int, Valuation]
+"""A digital state as a location of the T-LDGBA and the values of that location's clocks."""
+
+
+def fold_points(
+    translation: Translation, *, deadline: Deadline | None = None
+) -> tuple[Tldgba, tuple[Point, ...]]:
+    """:func:`fold`, with the point of each digital state: ``points[s]`` is the least
+    ``(location, valuation)`` that covers state ``s`` (a symmetric template covers a state
+    under several valuations; they behave alike)."""
     deadline = Deadline.none() if deadline is None else deadline
     timed = _timed_ids(translation)
     if not timed:
         # Without clocks a location is its forms, which name one state each: no fewer
         # locations than states, so folding cannot pay.
-        return unfolded(translation, deadline=deadline)
+        return _unfolded(_Folder(translation, set(), deadline, untimed=True))
     unfold: set[LocKey] = set()
     shapes = Shapes()  # with the labels, made once for every try
     labels: dict[tuple[tuple[int, int], ...], Letters] = {}
@@ -257,10 +270,23 @@ def fold(translation: Translation, *, deadline: Deadline | None = None) -> Tldgb
             folded = _build(folder)
             states = len(translation.automaton.states)
             if len(folded.locations) < states and len(folded.clock_bounds) <= MAX_CLOCKS:
-                return folded
+                return folded, _points(folder)
             break
         unfold |= conflicts
     return _unfolded(_Folder(translation, set(), deadline, True, shapes=shapes, labels=labels))
+
+
+def _points(folder: _Folder) -> tuple[Point, ...]:
+    found: dict[int, Point] = {}
+    for loc, covered in enumerate(folder.covered):
+        for valuation, state in covered.items():
+            point = (loc, valuation)
+            if state not in found or point < found[state]:
+                found[state] = point
+    count = len(folder.translation.automaton.states)
+    missing = [s for s in range(count) if s not in found]
+    assert not missing, f"the folding covers every digital state (not {missing[:5]})"
+    return tuple(found[s] for s in range(count))
 
 
 def _timed_ids(translation: Translation) -> frozenset[int]:
@@ -272,12 +298,12 @@ def _timed_ids(translation: Translation) -> frozenset[int]:
 def unfolded(translation: Translation, *, deadline: Deadline | None = None) -> Tldgba:
     """The digital automaton as a T-LDGBA: one location per state, no clocks."""
     deadline = Deadline.none() if deadline is None else deadline
-    return _unfolded(_Folder(translation, set(), deadline, untimed=True))
+    return _unfolded(_Folder(translation, set(), deadline, untimed=True))[0]
 
 
-def _unfolded(folder: _Folder) -> Tldgba:
+def _unfolded(folder: _Folder) -> tuple[Tldgba, tuple[Point, ...]]:
     folder.explore()
-    return _build(folder)
+    return _build(folder), _points(folder)
 
 
 def _build(folder: _Folder) -> Tldgba:

@@ -156,9 +156,7 @@ class Letters(NamedTuple):
             for c in minimal_cover(compressed, len(bits))
         ]
 
-    def text(
-        self, propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec"
-    ) -> str:
+    def text(self, propositions: Sequence[str], style: Literal["spec", "hoa"] = "spec") -> str:
         """The label: its cover in mitlc's syntax (``a & !b | c``, ``true``, ``false``), which
         :func:`mitlc.syntax.parse` reads back, or HOA's label syntax with proposition indices
         (``0&!1 | 2``, ``t``, ``f``)."""

@@ -9,19 +9,26 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import numpy.typing as npt
 from gymnasium import spaces
 
+from mitlc.automata.clocks import ClockView
 from mitlc.gym.observations import Readable, readable
 
 
 @dataclass(frozen=True, slots=True)
 class TaskObservation:
-    """The wrapper's observation of the env's observation, the automaton state and the
-    frontier: a ``Dict`` of the three (the env's part named ``env_key``), or with ``flatten``
-    one float32 ``Box``: the readable part of the env's observation flattened
+    """The wrapper's observation of the env's observation, the task's state and the frontier.
+
+    The task's state is the digital automaton's state (``task_obs="state"``) or its clock view
+    (``"clocks"``: the T-LDGBA's location and clocks, :mod:`mitlc.automata.clocks`). Without
+    ``flatten`` a ``Dict``: the env's part named ``env_key``, then ``automaton`` (a
+    ``Discrete`` of the states), or ``location`` (a ``Discrete`` of the locations) and
+    ``clocks`` (a ``Box`` in [0, 1], each clock over its bound), then ``frontier``. With
+    ``flatten``, one float32 ``Box``: the readable part of the env's observation flattened
     (:func:`mitlc.gym.observations.readable`: ``gymnasium.spaces.flatten``'s layout, text and
-    other parts without numbers left out), a one-hot of the automaton state and the
-    ``num_sets`` frontier bits."""
+    other parts without numbers left out), the task's features (a one-hot of the state, or
+    :meth:`~mitlc.automata.clocks.ClockView.features`) and the ``num_sets`` frontier bits."""
 
     env_space: spaces.Space[Any]
     env_key: str
@@ -32,41 +39,66 @@ class TaskObservation:
     env_dim: int = 0
     readable: Readable | None = None
     """The readable part of the env's observation (with ``flatten``)."""
+    clocks: ClockView | None = None
+    features: npt.NDArray[np.float32] | None = None
+    """The clock view's features, a row per automaton state."""
 
     @staticmethod
     def of(
-        env_space: spaces.Space[Any], env_key: str, num_q: int, num_sets: int, flatten: bool
+        env_space: spaces.Space[Any],
+        env_key: str,
+        num_q: int,
+        num_sets: int,
+        flatten: bool,
+        clocks: ClockView | None = None,
     ) -> TaskObservation:
         """The observation of an env with ``env_space`` (an
         :class:`~mitlc.gym.observations.UnreadableObservation`, a ``ValueError``, when it is
-        flattened and has nothing a learner can read)."""
+        flattened and has nothing a learner can read); ``clocks``: show the task's state by
+        its clock view."""
+        features = None if clocks is None else clocks.features()
         if not flatten:
-            space = spaces.Dict(
-                {
-                    env_key: env_space,
-                    "automaton": spaces.Discrete(num_q),
-                    "frontier": spaces.Discrete(1 << num_sets),
+            task: dict[str, spaces.Space[Any]] = {"automaton": spaces.Discrete(num_q)}
+            if clocks is not None:
+                size = (clocks.num_clocks,)
+                task = {
+                    "location": spaces.Discrete(clocks.num_locations),
+                    "clocks": spaces.Box(0.0, 1.0, size, dtype=np.float32),
                 }
+            frontier = spaces.Discrete(1 << num_sets)
+            space = spaces.Dict({env_key: env_space, **task, "frontier": frontier})
+            return TaskObservation(
+                env_space, env_key, num_q, num_sets, False, space, clocks=clocks, features=features
             )
-            return TaskObservation(env_space, env_key, num_q, num_sets, False, space)
         part = readable(env_space)
         flat = part.space
-        task = num_q + num_sets
-        low = np.concatenate([flat.low, np.zeros(task)]).astype(np.float32)
-        high = np.concatenate([flat.high, np.ones(task)]).astype(np.float32)
+        width = (num_q if features is None else features.shape[1]) + num_sets
+        low = np.concatenate([flat.low, np.zeros(width)]).astype(np.float32)
+        high = np.concatenate([flat.high, np.ones(width)]).astype(np.float32)
         box = spaces.Box(low, high, dtype=np.float32)
-        return TaskObservation(env_space, env_key, num_q, num_sets, True, box, part.size, part)
+        return TaskObservation(
+            env_space, env_key, num_q, num_sets, True, box, part.size, part, clocks, features
+        )
 
     def observe(self, obs: Any, q: int, frontier: int) -> Any:
         """The observation of the env's ``obs`` in automaton state ``q`` with ``frontier``."""
         if not self.flatten:
-            return {self.env_key: obs, "automaton": q, "frontier": frontier}
+            if self.clocks is None:
+                return {self.env_key: obs, "automaton": q, "frontier": frontier}
+            clocks = self.features[q, self.clocks.num_locations :]  # type: ignore[index]
+            location = self.clocks.location[q]
+            return {self.env_key: obs, "location": location, "clocks": clocks.copy(),
+                    "frontier": frontier}  # fmt: skip
         dim = self.env_dim
-        flat = np.zeros(dim + self.num_q + self.num_sets, dtype=np.float32)
+        task = self.num_q if self.features is None else self.features.shape[1]
+        flat = np.zeros(dim + task + self.num_sets, dtype=np.float32)
         assert self.readable is not None, "a flat observation has its readable part"
         self.readable.write(obs, flat[:dim])
-        flat[dim + q] = 1.0
-        base = dim + self.num_q
+        if self.features is None:
+            flat[dim + q] = 1.0
+        else:
+            flat[dim : dim + task] = self.features[q]
+        base = dim + task
         for k in range(self.num_sets):
             if frontier >> k & 1:
                 flat[base + k] = 1.0

@@ -14,14 +14,18 @@ plumbing between the monitor and the environment:
 * **Observation.** ``Dict({"env": env's space, "automaton": Discrete(Q), "frontier":
   Discrete(2 ** num_sets)})``: the frontier (the acceptance sets seen in the current round) is
   the monitor's bit mask as one integer, so the observation is the task's full state and
-  Stable-Baselines3 one-hot encodes it. ``Q`` is the number of states of an eager
+  Stable-Baselines3 one-hot encodes it. With ``task_obs="clocks"`` the task's state is
+  shown by its clock view (:mod:`mitlc.automata.clocks`): ``location`` (a ``Discrete`` of the
+  T-LDGBA's locations) and ``clocks`` (a ``Box`` of its clocks over their bounds) in place of
+  ``automaton``; the digital state is still the monitor's and ``info["automaton_state"]``.
+  ``Q`` is the number of states of an eager
   :class:`~mitlc.automata.DigitalAutomaton` (or ``max_automaton_states``, if larger); any other
   (lazy) automaton needs ``max_automaton_states``, and a run that reaches a state past it, or a
   state with more jumps than ``max_jumps`` (default 0), raises :class:`TaskWrapperError`.
   With ``flatten=True``: one float32 ``Box``, the readable part of the env's observation
   flattened as ``gymnasium.spaces.flatten`` does (text parts left out:
-  :mod:`mitlc.gym.observations`), a one-hot of the automaton state and the ``num_sets``
-  frontier bits. The env's
+  :mod:`mitlc.gym.observations`), a one-hot of the automaton state (or its clock view's
+  features) and the ``num_sets`` frontier bits. The env's
   part is named ``env_key`` (``"env"``; the grid product names it ``"world"``).
 * **Actions.** The env's. If the automaton has epsilon jumps (``J`` at most from a state), the
   env's action space must be ``Discrete(n)`` and becomes ``Discrete(n + J)``: action ``n + j``
@@ -75,6 +79,8 @@ from gymnasium import spaces
 from gymnasium.utils import RecordConstructorArgs
 
 from mitlc.automata import DigitalAutomaton, translate
+from mitlc.automata.clocks import ClockView, ClockViewError, clock_view, clock_view_of
+from mitlc.automata.ldba import translate_terms
 from mitlc.errors import MitlcError
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
 from mitlc.labels import (
@@ -85,18 +91,22 @@ from mitlc.labels import (
     as_labels,
     letter_reader,
 )
+from mitlc.labels.distance import distances
 from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
-from mitlc.labels.values import Moment
+from mitlc.labels.values import NO_MOMENT, Moment
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
-from mitlc.task.rules import TaskRewards
+from mitlc.task.potential import TaskPotential, task_potential
+from mitlc.task.rules import VERDICT_CODES, TaskRewards
 from mitlc.worlds.model import BoolArray, Rewards
 
 ENV_ID = "mitlc/Task-v0"
 """``gymnasium.make(ENV_ID, env_id=..., spec=..., labels=..., horizon=...)``."""
 
+PENDING = VERDICT_CODES["pending"]
 RewardMode = Literal["replace", "add"]
 EnvEnd = Literal["auto", "step", "finish"]
+TaskObs = Literal["state", "clocks"]
 
 
 class TaskWrapperError(MitlcError, ValueError):
@@ -121,6 +131,37 @@ def _rewards(rewards: TaskRewards | Mapping[str, float] | None) -> TaskRewards:
     return rewards
 
 
+def _task(spec: str | TaskAutomaton, task_obs: TaskObs) -> tuple[TaskAutomaton, ClockView | None]:
+    """The automaton of ``spec`` and, with ``task_obs="clocks"``, its clock view."""
+    if task_obs not in ("state", "clocks"):
+        raise TaskWrapperError(f"task_obs: expected 'state' or 'clocks', got {task_obs!r}")
+    if isinstance(spec, str):
+        if task_obs == "state":
+            return translate(parse(spec, "<spec>")), None
+        translation = translate_terms(parse(spec, "<spec>"))
+        return translation.automaton, clock_view(translation)
+    if task_obs == "state":
+        return spec, None
+    if not isinstance(spec, DigitalAutomaton):
+        raise TaskWrapperError(
+            "task_obs: the clocks of a lazy automaton are not known: use 'state'"
+        )
+    try:
+        return spec, clock_view_of(spec)
+    except ClockViewError as err:
+        raise TaskWrapperError(f"task_obs: {err}") from None
+
+
+def _shaping(automaton: TaskAutomaton, potential: float | None) -> TaskPotential | None:
+    if potential is None:
+        return None
+    if isinstance(potential, bool) or not isinstance(potential, int | float) or potential < 0:
+        raise TaskWrapperError(f"potential: expected a reach >= 0, got {potential!r}")
+    if not isinstance(automaton, DigitalAutomaton):
+        raise TaskWrapperError("potential: the shaping of a lazy automaton is not known")
+    return task_potential(automaton)
+
+
 class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     """A task on a gymnasium environment (see the module docstring)."""
 
@@ -141,16 +182,21 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         max_jumps: int | None = None,
         env_key: str = "env",
         env_end: EnvEnd = "auto",
+        task_obs: TaskObs = "state",
+        potential: float | None = None,
     ) -> None:
         """Wrap ``env`` with the task ``spec`` (a formula's text, or an automaton), read through
         ``labels``. ``max_automaton_states`` (and ``max_jumps``, default 0) size a lazy
         automaton's part of the spaces; ``env_key`` names the env's part of the observation;
-        ``env_end`` says how the steps after the env has ended are taken (module docstring)."""
+        ``env_end`` says how the steps after the env has ended are taken; ``task_obs`` shows
+        the task's state as the automaton state or by its clocks; with ``potential`` (the
+        env distance at which a label's pull is flat; 0: the largest at the first reset)
+        ``info["potential"]`` is the task's shaping potential (module docstring)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
-            env_end=env_end,
+            env_end=env_end, task_obs=task_obs, potential=potential,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
         if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
@@ -159,9 +205,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             raise TaskWrapperError(f"reward_mode: expected 'replace' or 'add', got {reward_mode!r}")
         if env_end not in ("auto", "step", "finish"):
             raise TaskWrapperError(f"env_end: expected 'auto', 'step' or 'finish', got {env_end!r}")
-        if env_key in ("automaton", "frontier"):
+        if env_key in ("automaton", "frontier", "location", "clocks"):
             raise TaskWrapperError(f"env_key: {env_key!r} is the name of the task's part")
-        automaton = translate(parse(spec, "<spec>")) if isinstance(spec, str) else spec
+        automaton, self.clocks = _task(spec, task_obs)
         self.automaton: TaskAutomaton = automaton
         self.monitor = TaskMonitor(automaton, _rewards(rewards))
         self.labels = as_labels(labels, env.observation_space)
@@ -198,6 +244,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._letter, self._done, self._ended = 0, True, False
         self._env_obs: Any = None
         self._env_info: dict[str, Any] = {}
+        self._shaping = _shaping(automaton, potential)
+        self._reach = float(potential) if potential else 0.0
+        self._distances: list[float | None] = []
 
     def _warn_cut(self, what: str) -> None:
         if not self._cut_warned:
@@ -245,7 +294,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def _observation_spaces(self, space: spaces.Space[Any]) -> None:
         try:
             self._view = TaskObservation.of(
-                space, self._env_key, self.num_q, self._num_sets, self.flatten
+                space, self._env_key, self.num_q, self._num_sets, self.flatten, self.clocks
             )
         except ValueError as err:
             raise TaskWrapperError(f"flatten: {err}") from None
@@ -298,6 +347,16 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             self._masks[q] = mask
         return mask
 
+    def potential(self) -> float:
+        """The task's shaping potential now (:mod:`mitlc.task.potential`; unscaled, 0 once the
+        task is decided); needs ``potential`` set when the wrapper was made."""
+        if self._shaping is None:
+            raise TaskWrapperError("potential: make the wrapper with potential=REACH")
+        q = self._state.q
+        if self.monitor.verdict(q) != PENDING:
+            return 0.0
+        return self._shaping.of(q, self._distances, self._reach or 1.0)
+
     def state_dict(self) -> dict[str, Any]:
         """The run's state for a checkpoint: the task monitor's, the letter to read next,
         whether the env has ended, the env's last observation and info (its entries that are
@@ -313,6 +372,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             "env_obs": self._env_obs,
             "env_info": data_only(self._env_info),
             "held": self.held,
+            "reach": self._reach,
+            "distances": list(self._distances),
             "env": own,
         }
 
@@ -323,6 +384,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._ended = bool(saved.get("env_ended", False))
         self._env_obs, self._env_info = saved["env_obs"], dict(saved.get("env_info", {}))
         self.held = int(saved.get("held", 0))
+        self._reach = float(saved.get("reach", self._reach))
+        self._distances = [None if d is None else float(d) for d in saved.get("distances", [])]
         inner = self.env.unwrapped
         if hasattr(inner, "load_state_dict"):
             inner.load_state_dict(saved["env"])
@@ -396,6 +459,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["accepting"] = new > 0
         if self._discrete:
             info["action_mask"] = self.masks_of(q).copy()
+        if self._shaping is not None:
+            info["potential"] = self.potential()
         return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -423,13 +488,31 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     ) -> None:
         """Read the letter of the position ``reset`` (``reward`` None) or a step reached, with
         the moment where the labels read one, and or it into :attr:`held`."""
+        moment = Moment(self._unwrapped, reward, terminated) if self._moment else NO_MOMENT
         if self._moment:
             if self._probe is not None:
                 self._check_labels(info, reset=reward is None)
-            self._letter = self._read(obs, info, Moment(self._unwrapped, reward, terminated))
+            self._letter = self._read(obs, info, moment)
         else:
             self._letter = self._read(obs, info)
         self.held |= self._letter
+        if self._shaping is not None:
+            self._distances = self._measure(obs, info, moment)
+
+    def _measure(self, obs: Any, info: dict[str, Any], moment: Moment) -> list[float | None]:
+        """How far the position is from each proposition (:mod:`mitlc.labels.distance`); the
+        first sets the reach, where none was given."""
+        props = self.automaton.propositions
+        if isinstance(self.labels, Labeller):
+            found = distances(self.labels, props, obs, info, moment)
+        elif hasattr(self.labels, "distances"):  # labels read elsewhere than obs (a plane's)
+            found = self.labels.distances(props, obs, info, moment)
+        else:
+            return []
+        if not self._reach:
+            known = [d for d in found if d is not None and d > 0.0]
+            self._reach = max(known, default=1.0)
+        return found
 
     def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
         """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``
@@ -492,4 +575,6 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["accepting"] = accepting
         if self._discrete:
             info["action_mask"] = self.masks_of(state.q).copy()
+        if self._shaping is not None:
+            info["potential"] = self.potential()
         return info

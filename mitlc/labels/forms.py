@@ -42,7 +42,7 @@ class Labels(Protocol):
 # -- the forms ---------------------------------------------------------------------------------
 
 
-def _part(obs: Any, key: str | None) -> Any:
+def obs_part(obs: Any, key: str | None) -> Any:
     return obs if key is None else obs[key]
 
 
@@ -55,7 +55,7 @@ class ObsIn:
 
     def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
-        return int(_part(obs, self.key)) in self.values
+        return int(obs_part(obs, self.key)) in self.values
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +70,7 @@ class Decoded:
 
     def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
-        value = int(_part(obs, self.key))
+        value = int(obs_part(obs, self.key))
         return all(value // d % r in allowed for d, r, allowed in self.checks) and all(
             value // d % r == value // e % s for d, r, e, s in self.equal
         )
@@ -87,7 +87,7 @@ class InBox:
 
     def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
-        x = _part(obs, self.key)
+        x = obs_part(obs, self.key)
         return all(
             lo <= float(x[i]) <= hi
             for i, lo, hi in zip(self.index, self.low, self.high, strict=True)
@@ -105,7 +105,7 @@ class InDisc:
 
     def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
         """Whether the form holds."""
-        x = _part(obs, self.key)
+        x = obs_part(obs, self.key)
         squared = sum((float(x[i]) - c) ** 2 for i, c in zip(self.index, self.center, strict=True))
         return squared <= self.radius * self.radius
 

@@ -5,7 +5,9 @@ A world file may say::
 
     training:
       algo: q            # q | dqn | drqn (default: q for an MDP, drqn for a POMDP), or
-                         # sb3-ppo | sb3-dqn | sb3-maskable-ppo | sb3-recurrent-ppo
+                         # sb3-ppo | sb3-dqn | sb3-maskable-ppo | sb3-recurrent-ppo |
+                         # sb3-sac | sb3-td3 (the last two for Box actions)
+      device: auto       # auto | cpu | cuda (mitlc.learn.device)
       episodes: 20000
       q: {alpha: 0.2}    # the learner's own section: QConfig, DQNConfig or DRQNConfig
       dqn: {episodes: 40000, initial_value: 100}
@@ -33,8 +35,18 @@ from mitlc.errors import MitlcError
 from mitlc.learn.names import ALGORITHMS, MAX_EVAL_EPISODES
 
 Algorithm = Literal[
-    "q", "dqn", "drqn", "sb3-ppo", "sb3-dqn", "sb3-maskable-ppo", "sb3-recurrent-ppo"
+    "q",
+    "dqn",
+    "drqn",
+    "sb3-ppo",
+    "sb3-dqn",
+    "sb3-maskable-ppo",
+    "sb3-recurrent-ppo",
+    "sb3-sac",
+    "sb3-td3",
 ]
+Device = Literal["auto", "cpu", "cuda"]
+TaskObs = Literal["auto", "state", "clocks"]
 DEFAULT_EPISODES = {"q": 300_000, "dqn": 5_000, "drqn": 20_000}
 
 
@@ -158,9 +170,9 @@ SB3_STEPS = 100_000
 @dataclass(frozen=True, slots=True)
 class SB3Config:
     """Stable-Baselines3's algorithms (``sb3-ppo``, ``sb3-dqn``, ``sb3-maskable-ppo``,
-    ``sb3-recurrent-ppo``; :mod:`mitlc.learn.backends.sb3`). Budgets count environment steps. A 0
-    where
-    :attr:`RANGES` allows it means SB3's own default for the algorithm."""
+    ``sb3-recurrent-ppo``, ``sb3-sac``, ``sb3-td3``; :mod:`mitlc.learn.backends.sb3`). Budgets
+    count environment steps. A 0 where :attr:`RANGES` allows it means SB3's own default for the
+    algorithm."""
 
     steps: int = SB3_STEPS
     """The run's total environment steps (``total_timesteps``), also when resumed."""
@@ -171,18 +183,34 @@ class SB3Config:
     """Environment steps between checkpoints (default: a tenth of steps)."""
     hidden: int = 64
     layers: int = 2
-    """The MLP's hidden layers (``net_arch``; SB3's default is two of 64)."""
+    """The MLP's hidden layers (``net_arch``, the actor's and the critic's for SAC and TD3;
+    SB3's default is two of 64 for PPO and DQN, 256 for SAC, 400 and 300 for TD3)."""
     learning_rate: float = 0.0
-    """0: SB3's (3e-4 for the PPO family, 1e-4 for DQN)."""
+    """0: SB3's (3e-4 for the PPO family and SAC, 1e-4 for DQN, 1e-3 for TD3)."""
     n_steps: int = 0
     """PPO family: steps per env per rollout; 0: SB3's (2048; 128 for recurrent PPO)."""
     batch_size: int = 0
-    """Minibatch (PPO family) or replay batch (DQN); 0: SB3's (64; 128 recurrent; DQN 32)."""
+    """Minibatch (PPO family) or replay batch (DQN, SAC, TD3); 0: SB3's (64; 128 recurrent; DQN
+    32; SAC and TD3 256)."""
     n_epochs: int = 10
     ent_coef: float = 0.0
+    """The entropy bonus of the PPO family (SB3's default is 0); SAC's entropy coefficient,
+    where 0 means SB3's default ``"auto"`` (learned, starting at 1, toward the target entropy
+    ``-dim(actions)``)."""
     buffer_size: int = 0
-    """DQN's replay capacity; 0: SB3's (1,000,000)."""
+    """The replay capacity of DQN, SAC and TD3; 0: SB3's (1,000,000)."""
     learning_starts: int = 100
+    """DQN, SAC, TD3: the steps of random actions before learning starts (SB3's default)."""
+    tau: float = 0.0
+    """DQN, SAC, TD3: the soft update of the target networks; 0: SB3's (1 for DQN, a hard copy
+    every ``target_update_interval`` steps; 0.005 for SAC and TD3)."""
+    train_freq: int = 0
+    """DQN, SAC, TD3: environment steps (per env) between updates; 0: SB3's (4 for DQN, 1)."""
+    gradient_steps: int = 0
+    """DQN, SAC, TD3: gradient steps per update; 0: SB3's (1)."""
+    noise_std: float = 0.1
+    """TD3's exploration: Gaussian noise of this standard deviation on its actions, which SB3
+    scales to [-1, 1] (rl-zoo's setting); 0: none, SB3's default."""
     exploration_fraction: float = 0.1
     exploration_final_eps: float = 0.05
     target_update_interval: int = 10_000
@@ -197,6 +225,10 @@ class SB3Config:
         "ent_coef": (0, math.inf),
         "buffer_size": (0, math.inf),
         "learning_starts": (0, math.inf),
+        "tau": (0, 1),
+        "train_freq": (0, math.inf),
+        "gradient_steps": (0, math.inf),
+        "noise_std": (0, math.inf),
         "exploration_fraction": (0, 1),
         "exploration_final_eps": (0, 1),
         "target_update_interval": (1, math.inf),
@@ -222,15 +254,37 @@ class TrainConfig:
     """Checkpoints kept in the run directory (the latest and the ones before it); older ones
     are deleted."""
     eval_episodes: int = 10_000
+    device: Device = "auto"
+    """Where torch trains (:func:`mitlc.learn.device.resolve_device`): ``auto`` (CUDA where
+    there is one, else the CPU), ``cpu`` or ``cuda``. A run saved without it trained on the
+    CPU, as ``auto`` does on a machine without CUDA."""
     discount: Discount = field(default_factory=Discount)
     shaping: float = 0.0
-    """The scale of potential-based shaping (Ng, Harada and Russell, ICML 1999) with potential
-    ``-shaping * d`` where ``d`` is the automaton's distance to acceptance; 0 turns it off."""
+    """The scale of potential-based shaping (Ng, Harada and Russell, ICML 1999) with the task's
+    potential (:mod:`mitlc.task.potential`: the automaton's distance to acceptance, the env's
+    distance to a proposition that advances it, the share of the deadline spent); 0 turns it
+    off."""
+    shaping_reach: float = 0.0
+    """The env distance past which a proposition's pull is flat (0: in a finite world the
+    longest distance in steps, in an env the largest distance at the first reset)."""
+    task_obs: TaskObs = "auto"
+    """What the deep learners and the SB3 backends see of the task: ``state``, a one-hot of the
+    digital automaton's state; ``clocks``, the T-LDGBA's location (one-hot) and its clocks
+    scaled by their bounds (:mod:`mitlc.automata.clocks`); ``auto``, the clocks where the
+    automaton has more than 64 states and its folding has clocks, else the state
+    (:data:`mitlc.learn.learners.encoder.AUTO_CLOCKS`). (Tabular Q-learning reads product
+    states.)"""
     q: QConfig = field(default_factory=QConfig)
     dqn: DQNConfig = field(default_factory=DQNConfig)
     drqn: DRQNConfig = field(default_factory=DRQNConfig)
     sb3: SB3Config = field(default_factory=SB3Config)
     """The section of every ``sb3-*`` algorithm."""
+
+    RANGES: ClassVar[dict[str, tuple[float, float]]] = {
+        "shaping": (0, math.inf),
+        "shaping_reach": (0, math.inf),
+    }
+    """Allowed values of the fields that the rules by name leave open."""
 
     @property
     def learner(self) -> QConfig | DQNConfig | DRQNConfig | SB3Config:

@@ -37,7 +37,7 @@ from mitlc.learn.config import TrainConfig
 from mitlc.learn.envs.envvec import VectorTask
 from mitlc.learn.envs.vector import ProductVectorEnv
 from mitlc.learn.held import run_never_held
-from mitlc.learn.learners.base import Learner, automaton_potential, potential
+from mitlc.learn.learners.base import Learner, ProductShaping, product_potential
 from mitlc.learn.learners.open_world import make_open_learner
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import METRICS, SUMMARY, locked
@@ -78,13 +78,12 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         return make_open_learner(setting, rng)
     world, product, table = setting.model()
     config = setting.config
-    phi = None
-    if config.shaping:  # per product state for the table, per automaton state for the nets
-        phi = (
-            potential(table, setting.automaton, config.shaping)
-            if config.algo == "q"
-            else automaton_potential(setting.automaton, config.shaping)
-        )
+    phi = (
+        product_potential(table, world, setting.automaton, config.shaping, config.shaping_reach)
+        if config.shaping
+        else None
+    )
+    shaping = ProductShaping(phi) if phi is not None else None
     if world.is_pomdp and config.algo != "drqn":
         raise RunError(
             f"{config.algo} learns on the true cell, which a POMDP's agent does not see: use "
@@ -96,15 +95,20 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
 
         crm = Counterfactuals.build(product, world, setting.automaton) if config.q.crm else None
         return QLearner(table, config, rng, phi, crm)
+    from mitlc.learn.learners.encoder import Encoder, task_features
+
+    task = task_features(setting.automaton, config.task_obs)
     if config.algo == "dqn":
         from mitlc.learn.learners.crm import Counterfactuals
         from mitlc.learn.learners.dqn import DQNLearner
 
         crm = Counterfactuals.build(product, world, setting.automaton) if config.dqn.crm else None
-        return DQNLearner(table, config, rng, phi, crm)
+        encoder = Encoder(table, task_features=task)
+        return DQNLearner(table, config, rng, shaping, crm, encoder=encoder)
     from mitlc.learn.learners.drqn import DRQNLearner
 
-    return DRQNLearner(table, config, rng, phi)
+    encoder = Encoder(table, config.drqn.previous_action, task_features=task)
+    return DRQNLearner(table, config, rng, shaping, encoder=encoder)
 
 
 def _rngs(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -286,6 +290,4 @@ def _train(
         if unseen:
             summary["never_held"] = list(unseen)
         write_json(directory / SUMMARY, summary)
-    return RunResult(
-        directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen
-    )
+    return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen)

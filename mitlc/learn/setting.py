@@ -96,8 +96,14 @@ def setting_notes(setting: Setting) -> list[str]:
 
 def task_vector_of(setting: Setting, num_envs: int, seed: int, *, flatten: bool = False) -> Any:
     """``num_envs`` fresh envs of the world under the task wrapper, as a
-    :class:`~mitlc.learn.envs.envvec.VectorTask` whose first env is reset with ``seed``."""
-    envs = [task_env(setting.world, setting.automaton, flatten=flatten) for _ in range(num_envs)]
+    :class:`~mitlc.learn.envs.envvec.VectorTask` whose first env is reset with ``seed``; with
+    shaping on, the wrappers report the task's potential."""
+    config = setting.config
+    options = {"potential": config.shaping_reach} if config.shaping else {}
+    envs = [
+        task_env(setting.world, setting.automaton, flatten=flatten, **options)
+        for _ in range(num_envs)
+    ]
     vector: VectorTask = task_vector(envs, seed=seed)
     return vector
 
@@ -142,8 +148,9 @@ def read_config(directory: Path) -> tuple[dict[str, Any], TrainConfig]:
             raise RunError(f"{path}: {key!r} is missing or not a usable string")
     if not isinstance(data.get("train"), dict):
         raise RunError(f"{path}: 'train' is missing or not a JSON object")
+    train = {"task_obs": "state", **data["train"]}  # runs from before the setting saw states
     try:
-        return data, from_data(data["train"])
+        return data, from_data(train)
     except ConfigError as err:
         raise RunError(f"{path}: train.{err}") from None
 

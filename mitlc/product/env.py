@@ -43,10 +43,11 @@ from pathlib import Path
 import gymnasium as gym
 
 from mitlc.automata import DigitalAutomaton, translate
-from mitlc.gym.wrapper import TaskWrapper
+from mitlc.gym.wrapper import PENDING, TaskObs, TaskWrapper
 from mitlc.product.explicit import automaton_letters
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES
+from mitlc.task.potential import world_potential
 from mitlc.worlds import World, load_world
 from mitlc.worlds.grid_env import GridEnv, WorldLabels
 
@@ -70,6 +71,8 @@ class ProductEnv(TaskWrapper):
         *,
         render_mode: str | None = None,
         flatten: bool = False,
+        task_obs: TaskObs = "state",
+        potential: float | None = None,
     ) -> None:
         automaton_letters(world, automaton.propositions)  # the world must label the task
         super().__init__(
@@ -81,9 +84,19 @@ class ProductEnv(TaskWrapper):
             reward_mode="add",
             env_key="world",
             flatten=flatten,
+            task_obs=task_obs,
+            potential=potential,
         )
         self.world: World = world
         self.automaton: DigitalAutomaton = automaton
+        self._table = None if potential is None else world_potential(world, automaton, potential)
+
+    def potential(self) -> float:
+        """The task's shaping potential now, the world's distances being the fewest steps
+        to where each proposition holds (:func:`mitlc.task.potential.world_potential`)."""
+        if self._table is None or self.monitor.verdict(self.automaton_state) != PENDING:
+            return super().potential()
+        return float(self._table[self.automaton_state, self.world_state])
 
     @property
     def num_flat_states(self) -> int:

@@ -54,20 +54,21 @@ def is_finite(world: AnyWorld) -> TypeGuard[World]:
 
 
 def task_env(
-    world: AnyWorld, automaton: DigitalAutomaton, *, flatten: bool = False
+    world: AnyWorld, automaton: DigitalAutomaton, *, flatten: bool = False, **options: Any
 ) -> TaskWrapper:
     """A fresh gymnasium env of ``world`` under the task wrapper, with the task ``automaton``
-    (compiled once for many envs); ``flatten``: the wrapper's flat observation."""
+    (compiled once for many envs); ``flatten``: the wrapper's flat observation; ``options``:
+    the wrapper's ``task_obs`` and ``potential``."""
     made: Any
     if isinstance(world, World):
         from mitlc.product.env import ProductEnv
 
-        made = ProductEnv(world, automaton, flatten=flatten)
+        made = ProductEnv(world, automaton, flatten=flatten, **options)
     elif isinstance(world, PlaneWorld):
         from mitlc.worlds.plane_env import plane_task
 
-        made = plane_task(world, automaton=automaton, flatten=flatten)
+        made = plane_task(world, automaton=automaton, flatten=flatten, **options)
     else:
-        made = world.make(automaton, flatten=flatten)
+        made = world.make(automaton, flatten=flatten, **options)
     wrapper: TaskWrapper = made
     return wrapper

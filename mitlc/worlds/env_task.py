@@ -48,9 +48,9 @@ class EnvTask:
     is_pomdp: bool = False
     """Unknown for an env: the learner named in the file or on the command line decides."""
 
-    def make(self, automaton: Any, *, flatten: bool = False) -> Any:
+    def make(self, automaton: Any, *, flatten: bool = False, **options: Any) -> Any:
         """A fresh env wrapped with the task (``automaton``: the task compiled once;
-        ``flatten``: the wrapper's flat observation)."""
+        ``flatten``: the wrapper's flat observation; ``options``: the wrapper's others)."""
         from mitlc.gym import TaskWrapper
 
         return TaskWrapper(
@@ -60,6 +60,7 @@ class EnvTask:
             rewards=self.rewards,
             horizon=self.horizon,
             flatten=flatten,
+            **options,
         )
 
 

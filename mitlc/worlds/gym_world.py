@@ -84,7 +84,6 @@ TOLERANCE = 1e-9
 """How far from 1 a distribution of the env (a row of ``P``, the start) may sum."""
 
 
-
 class GymWorldError(MitlcError):
     """What is wrong with an env world: each problem as (the field's path, a message). The
     loader (:func:`mitlc.worlds.load.load_world`) shows them at their lines in the file."""
@@ -361,7 +360,6 @@ def _split(
         return split_by_events(table, m, read, starts, entry, MAX_ENV_STATES)
     except ValueError as err:
         raise GymWorldError([(ENV_ID, f"{file.env.id}: {err}")]) from None
-
 
 
 def _discrete(space: Any, what: str, env_id: str) -> int:

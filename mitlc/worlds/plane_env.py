@@ -30,6 +30,8 @@ from gymnasium import spaces
 from mitlc.automata import translate
 from mitlc.gym.wrapper import TaskWrapper
 from mitlc.labels import Labeller, LetterReader, compile_labels
+from mitlc.labels.distance import distances
+from mitlc.labels.values import Moment
 from mitlc.syntax import parse
 from mitlc.worlds.plane import PlaneWorld, Vec
 
@@ -145,6 +147,12 @@ class PositionLabels:
         """Letters over ``propositions`` (each must be declared)."""
         return PositionLetters(self.labeller.letter_reader(propositions))
 
+    def distances(
+        self, propositions: Sequence[str], obs: Any, info: Mapping[str, Any], moment: Moment
+    ) -> list[float | None]:
+        """How far the true position is from each region (:mod:`mitlc.labels.distance`)."""
+        return distances(self.labeller, propositions, info["position"], info, moment)
+
 
 def plane_task(
     world: PlaneWorld,
@@ -152,6 +160,7 @@ def plane_task(
     flatten: bool = False,
     render_mode: str | None = None,
     automaton: Any = None,
+    **options: Any,
 ) -> TaskWrapper:
     """``world`` with its task: ``TaskWrapper(PlaneEnv(world), world.spec, its labels,
     rewards=world.rewards, horizon=world.horizon, reward_mode="add")``; ``automaton``, when
@@ -164,6 +173,7 @@ def plane_task(
         horizon=world.horizon,
         reward_mode="add",
         flatten=flatten,
+        **options,
     )
 
 

@@ -1,5 +1,7 @@
 """Stable-Baselines3 as a backend: ``mitlc train WORLD --algo sb3-ppo | sb3-dqn |
-sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc run directory.
+sb3-maskable-ppo | sb3-recurrent-ppo | sb3-sac | sb3-td3`` (the extra ``mitlc[sb3]``), into a
+mitlc run directory. SAC and TD3 take continuous (``Box``) actions; what is particular to the
+off-policy algorithms is in :mod:`mitlc.learn.backends.sb3_offpolicy`.
 
 * **The env** is the world's wrapped env, :class:`~mitlc.product.env.ProductEnv` (a
   :class:`~mitlc.gym.TaskWrapper` on the world) with the wrapper's flat observation: one
@@ -14,22 +16,25 @@ sb3-maskable-ppo | sb3-recurrent-ppo`` (the extra ``mitlc[sb3]``), into a mitlc 
   with its ``Monitor``); ``MaskablePPO`` reads the wrapper's ``action_masks()``.
 * **Settings**: the ``sb3`` section of the training settings
   (:class:`~mitlc.learn.config.SB3Config`; a 0 means SB3's own default), the discount's
-  ``gamma``, and the run's ``seed`` (SB3's ``seed``). The budget is ``sb3.steps`` environment
+  ``gamma``, the run's ``seed`` (SB3's ``seed``) and ``device``
+  (:func:`mitlc.learn.device.resolve_device`). The budget is ``sb3.steps`` environment
   steps, the run's total also when resumed; a PPO run ends at the first whole rollout past it.
   SB3 learns with a constant discount and no shaping: other settings are refused.
 * **The run directory** is mitlc's (:mod:`mitlc.learn.run`): ``config.json``,
   ``metrics.jsonl`` (a line every ``sb3.log_every`` steps from an SB3 callback: episodes,
   steps, the success rate from ``info["is_success"]`` and the mean return of the episodes ended
-  since the last line, ``epsilon`` (DQN's exploration rate, 0 for the PPO family), seconds),
-  ``summary.json``, the lock, and checkpoints written by :mod:`mitlc.learn.rundir.checkpoint` (every
-  ``sb3.checkpoint_every`` steps, at the end and on Ctrl-C): the policy's ``state_dict()`` and
-  its optimiser's as safetensors, SB3's settings and counters as JSON; never SB3's zip, which
-  holds pickles.
-* **Resume** rebuilds the model from the settings and loads the policy, the optimiser and the
-  counters (``num_timesteps`` included, so the schedules go on where they were). It does not
-  replay the run exactly: the envs restart with new episodes (seeded by the seed plus the
-  steps), a PPO rollout in progress is collected again, and **sb3-dqn's replay memory is not
-  saved**: the resumed run refills it for ``sb3.learning_starts`` steps before it learns again.
+  since the last line, ``epsilon`` (DQN's exploration rate, 0 for the others), seconds),
+  ``summary.json``, the lock, and checkpoints written by :mod:`mitlc.learn.rundir.checkpoint`
+  (every ``sb3.checkpoint_every`` steps, at the end and on Ctrl-C): the ``state_dict()`` of the
+  policy, of every optimiser and SB3's other tensors (SAC's entropy coefficient), as SB3 lists
+  them (``_get_torch_save_params``), as safetensors, SB3's settings and counters as JSON; never
+  SB3's zip, which holds pickles.
+* **Resume** rebuilds the model from the settings and loads the policy, the optimisers and the
+  counters (``num_timesteps`` included, so the schedules go on where they were), on the run's
+  device or another (``--device`` may change). It does not replay the run exactly: the envs
+  restart with new episodes (seeded by the seed plus the steps), a PPO rollout in progress is
+  collected again, and **the replay memory of sb3-dqn, sb3-sac and sb3-td3 is not saved**: the
+  resumed run refills it for ``sb3.learning_starts`` steps before it learns again.
 * **eval and plot** (:func:`load_learner`, called by :func:`mitlc.learn.run.load_learner`;
   :mod:`mitlc.learn.backends.sb3_policy`): the policy acts greedily (as ``deterministic=True``)
   among
@@ -44,13 +49,22 @@ import importlib
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from operator import attrgetter
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import torch
 
+from mitlc.learn.backends.sb3_offpolicy import (
+    OFF_POLICY,
+    action_noise,
+    needs_box,
+    offpolicy_settings,
+)
 from mitlc.learn.config import TrainConfig
+from mitlc.learn.device import resolve_device
 from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.nets import configure_torch
 from mitlc.learn.rundir import checkpoint
@@ -83,6 +97,8 @@ ALGORITHMS = {
     "sb3-dqn": ("stable_baselines3", "DQN", "MlpPolicy"),
     "sb3-maskable-ppo": ("sb3_contrib", "MaskablePPO", "MlpPolicy"),
     "sb3-recurrent-ppo": ("sb3_contrib", "RecurrentPPO", "MlpLstmPolicy"),
+    "sb3-sac": ("stable_baselines3", "SAC", "MlpPolicy"),
+    "sb3-td3": ("stable_baselines3", "TD3", "MlpPolicy"),
 }
 """mitlc's name of each backend: SB3's module, algorithm class and policy."""
 
@@ -114,12 +130,13 @@ def wrapped_env(setting: Setting) -> Any:
 def model_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
     """The keywords given to the SB3 algorithm learning on ``env`` (:func:`wrapped_env`):
     :func:`sb3_settings`, with the features extractor of the images in ``env``'s observation
-    (:func:`mitlc.learn.backends.sb3_images.image_policy_kwargs`), which a checkpoint does not
-    hold (the world decides it)."""
+    (:func:`mitlc.learn.backends.sb3_images.image_policy_kwargs`) and TD3's action noise, which
+    a checkpoint does not hold (the world decides them)."""
     from mitlc.learn.backends.sb3_images import image_policy_kwargs
 
     given = sb3_settings(config)
     given["policy_kwargs"] = {**given["policy_kwargs"], **image_policy_kwargs(env)}
+    given.update(action_noise(config, env.action_space))
     return given
 
 
@@ -130,14 +147,9 @@ def sb3_settings(config: TrainConfig) -> dict[str, Any]:
         "gamma": config.discount.gamma,
         "policy_kwargs": {"net_arch": [s.hidden] * s.layers},
     }
-    if config.algo == "sb3-dqn":
-        given.update(
-            learning_starts=s.learning_starts,
-            exploration_fraction=s.exploration_fraction,
-            exploration_final_eps=s.exploration_final_eps,
-            target_update_interval=s.target_update_interval,
-        )
-        optional: dict[str, float] = {"buffer_size": s.buffer_size}
+    if config.algo in OFF_POLICY:
+        off, optional = offpolicy_settings(config)
+        given.update(off)
     else:
         given.update(n_epochs=s.n_epochs, ent_coef=s.ent_coef)
         optional = {"n_steps": s.n_steps}
@@ -150,31 +162,55 @@ def sb3_settings(config: TrainConfig) -> dict[str, Any]:
 
 
 class ModelState:
-    """An SB3 model as :class:`~mitlc.learn.rundir.state.Stateful` data: settings, policy and
-    optimiser
-    ``state_dict()``s (tensors), counters."""
+    """An SB3 model as :class:`~mitlc.learn.rundir.state.Stateful` data: settings, the
+    ``state_dict()`` of the policy and of each optimiser, SB3's other tensors, counters. The
+    optimisers and tensors are those SB3 saves (``_get_torch_save_params``): the policy's
+    ``optimizer`` (PPO family, DQN); ``actor_optimizer`` and ``critic_optimizer`` (SAC, TD3);
+    SAC's ``ent_coef_optimizer`` and ``log_ent_coef`` (or the fixed ``ent_coef_tensor``)."""
 
     COUNTERS = ("num_timesteps", "_n_updates", "_episode_num", "_n_calls")
 
     def __init__(self, model: Any, config: TrainConfig) -> None:
         self.model, self.settings = model, {"algo": config.algo, **sb3_settings(config)}
+        names, tensors = model._get_torch_save_params()
+        self.optimizers = {
+            "optimizer" if name == "policy.optimizer" else name.replace(".", "_"): name
+            for name in names
+            if name != "policy"
+        }
+        """Each optimiser's key in the state, and its attribute path in the model
+        (``actor.optimizer``)."""
+        self.tensors: tuple[str, ...] = tuple(tensors)
+
+    def unchecked(self) -> tuple[str, ...]:
+        """The optimisers' moments: a fresh optimiser has none yet (torch checks them against
+        the network on loading)."""
+        return tuple(f"model.{key}.state" for key in self.optimizers)
 
     def state_dict(self) -> dict[str, Any]:
         """The checkpointed part of the model."""
         model = self.model
-        return {
+        state: dict[str, Any] = {
             "settings": self.settings,
             "policy": dict(model.policy.state_dict()),
-            "optimizer": model.policy.optimizer.state_dict(),
-            "counters": {n.strip("_"): int(getattr(model, n, 0)) for n in self.COUNTERS},
         }
+        for key, path in self.optimizers.items():
+            state[key] = attrgetter(path)(model).state_dict()
+        for name in self.tensors:
+            state[name] = getattr(model, name).detach()
+        state["counters"] = {n.strip("_"): int(getattr(model, n, 0)) for n in self.COUNTERS}
+        return state
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Load :meth:`state_dict` into the model."""
+        """Load :meth:`state_dict` into the model (on its device)."""
         if saved["settings"] != self.settings:
             raise ValueError("the checkpoint was made with other settings than the run's")
         self.model.policy.load_state_dict(saved["policy"])
-        self.model.policy.optimizer.load_state_dict(saved["optimizer"])
+        for key, path in self.optimizers.items():
+            attrgetter(path)(self.model).load_state_dict(saved[key])
+        with torch.no_grad():
+            for name in self.tensors:
+                getattr(self.model, name).copy_(saved[name])
         for name in self.COUNTERS:
             if hasattr(self.model, name):
                 setattr(self.model, name, int(saved["counters"][name.strip("_")]))
@@ -196,22 +232,25 @@ def train(
     notes: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Train ``config.algo`` (an ``sb3-*`` name) as :func:`mitlc.learn.run.train` trains
-    mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all."""
+    mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all, on
+    ``config.device``."""
     if config.discount.mode != "constant" or config.shaping:
         raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
     algorithm(config.algo)  # SB3 installed?
+    device = resolve_device(config.device)
     directory = Path(out)
     setting = prepare(world_path, config, spec, deadline=deadline)
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)
+    needs_box(config.algo, lambda: wrapped_env(setting), setting.world_path)
     if resume:
         read_config(directory)
     else:
         directory.mkdir(parents=True, exist_ok=True)
     with locked(directory):
         _start(directory, setting, resume)
-        return _train(directory, setting, resume, progress, should_stop)
+        return _train(directory, setting, device, resume, progress, should_stop)
 
 
 def _start(directory: Path, setting: Setting, resume: bool) -> None:
@@ -222,12 +261,11 @@ def _start(directory: Path, setting: Setting, resume: bool) -> None:
         return
     data, saved = read_config(directory)
     config = setting.config
-    if replace(saved, episodes=config.episodes, sb3=replace(saved.sb3, steps=config.sb3.steps)) != (
-        config
-    ):
+    steps = replace(saved.sb3, steps=config.sb3.steps)
+    if replace(saved, episodes=config.episodes, sb3=steps, device=config.device) != config:
         raise RunError(
             f"{directory}: --resume with settings other than the run's own (only sb3.steps may "
-            "change)"
+            "change, and the device)"
         )
     if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != setting.world.spec:
         raise RunError(f"{directory}: --resume with another world or task than the run's")
@@ -236,6 +274,7 @@ def _start(directory: Path, setting: Setting, resume: bool) -> None:
 def _train(
     directory: Path,
     setting: Setting,
+    device: torch.device,
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,
@@ -252,13 +291,13 @@ def _train(
     assert isinstance(venv, DummyVecEnv)
     given = model_settings(config, venv.envs[0])
     try:
-        model = cls(policy, venv, seed=config.seed, device="cpu", verbose=0, **given)
+        model = cls(policy, venv, seed=config.seed, device=device, verbose=0, **given)
     except (ValueError, TypeError, AssertionError, MemoryError) as err:
         where = setting.world_path
         raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None
     state, tally = ModelState(model, config), Tally()
     if resume:
-        loaded = restore(directory, {"model": state, "tally": tally}, unchecked=UNCHECKED)
+        loaded = restore(directory, {"model": state, "tally": tally}, unchecked=state.unchecked())
         if tally.steps != loaded.steps or model.num_timesteps != loaded.steps:
             raise RunError(f"{loaded.files['json']}: the counters are not the checkpoint's steps")
         if tally.steps >= s.steps:
@@ -267,7 +306,7 @@ def _train(
                 f"run's total, so give more than {tally.steps:,} to go on"
             )
         model.set_random_seed(config.seed + tally.steps)  # new episodes, not the first ones
-        if config.algo == "sb3-dqn":  # the replay memory is not saved: refill it first
+        if config.algo in OFF_POLICY:  # the replay memory is not saved: refill it first
             model.learning_starts = tally.steps + s.learning_starts
         truncate_metrics(directory / METRICS, tally.episodes)
         (directory / SUMMARY).unlink(missing_ok=True)
@@ -289,13 +328,7 @@ def _train(
         if unseen:
             summary["never_held"] = list(unseen)
         write_json(directory / SUMMARY, summary)
-    return RunResult(
-        directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen
-    )
-
-
-UNCHECKED = ("model.optimizer.state",)
-"""A fresh optimiser has no moments yet; torch checks them against the network on loading."""
+    return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen)
 
 
 class _Run:
@@ -318,7 +351,7 @@ class _Run:
         self.clock = time.perf_counter() - tally.seconds
 
     def epsilon(self) -> float:
-        """DQN's exploration rate (0 for the PPO family, which explores by sampling)."""
+        """DQN's exploration rate (0 for the others, which explore by sampling or noise)."""
         return float(getattr(self.state.model, "exploration_rate", 0.0))
 
     def save(self) -> None:

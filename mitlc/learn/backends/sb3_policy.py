@@ -25,7 +25,8 @@ from gymnasium import spaces
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Learner, Policy
-from mitlc.learn.learners.nets import Encoder, build, configure_torch, greedy
+from mitlc.learn.learners.encoder import Encoder
+from mitlc.learn.learners.nets import build, configure_torch, greedy
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import RunError
 from mitlc.learn.rundir.state import Mismatch, conform
@@ -45,10 +46,9 @@ class SB3Policy(Policy):
         self.net, self.encoder = net, encoder
         self.tables = setting.tables if isinstance(setting, Setting) else None
         self.dqn = setting.config.algo == "sb3-dqn"
-        space = getattr(net, "action_space", None)
-        self.bounds = (space.low, space.high) if isinstance(space, spaces.Box) else None
-        """A continuous action space's bounds: the policy acts with its distribution's mode,
-        clipped to them (SB3's ``predict(deterministic=True)``)."""
+        self.continuous = isinstance(getattr(net, "action_space", None), spaces.Box)
+        """Continuous actions: the policy acts as SB3's ``predict(deterministic=True)`` (the
+        mode of PPO's distribution clipped to the bounds; SAC's and TD3's actor, rescaled)."""
 
     def scores(self, x: torch.Tensor) -> torch.Tensor:
         """Q-values (DQN) or action logits of the observation vectors ``x``."""
@@ -59,12 +59,12 @@ class SB3Policy(Policy):
         return logits
 
     def act(self, env: Episodes) -> IntArray:
-        """The greedy valid action of each episode (continuous actions: the mode, clipped)."""
+        """The greedy valid action of each episode (continuous actions: SB3's ``predict``)."""
         x = self.encoder(env.observation, env.automaton, env.mask)
+        if self.continuous:
+            actions, _ = self.net.predict(x.numpy(), deterministic=True)
+            return cast("IntArray", actions)
         with torch.no_grad():
-            if self.bounds is not None:
-                mode = self.net.get_distribution(x).mode().numpy()
-                return cast("IntArray", np.clip(mode, *self.bounds))
             return greedy(self.scores(x), env.valid_actions())
 
     def choices(self) -> IntArray:

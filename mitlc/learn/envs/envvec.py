@@ -200,6 +200,7 @@ class VectorTask:
             episode_steps=steps,
             next_automaton=automaton,
             next_valid=_entry(infos, final, done, "action_mask", self._all_valid()),
+            next_potential=_entry(infos, final, done, "potential", np.zeros(self.num_envs)),
         )
         self.returns[done] = 0.0
         self.steps = np.where(done, 0, steps)
@@ -224,6 +225,8 @@ class VectorTask:
         self.valid = np.asarray(mask, dtype=np.bool_) if mask is not None else self._all_valid()
         product = infos.get("product_state")
         self.state = np.full(self.num_envs, -1, dtype=np.int64) if product is None else product
+        potential = infos.get("potential")
+        self.potential = np.zeros(self.num_envs) if potential is None else np.asarray(potential)
 
     def _view(self, obs: dict[str, Any], *, copy: bool) -> tuple[Any, IntArray, IntArray]:
         own = obs[self.env_key]

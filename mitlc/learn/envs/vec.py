@@ -185,6 +185,9 @@ class Step:
     """The automaton state reached (0 at the product's absorbing states)."""
     next_valid: BoolArray
     """The actions valid in the state reached."""
+    next_potential: FloatArray | None = None
+    """The task's potential of the position reached (``info["potential"]`` of wrapped envs
+    that report it; 0 where an episode ended decided)."""
 
     @property
     def done(self) -> BoolArray:

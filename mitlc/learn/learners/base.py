@@ -4,6 +4,7 @@ action choice under a validity mask."""
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -11,7 +12,8 @@ import numpy as np
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.learn.config import Discount, TrainConfig
 from mitlc.learn.envs.vec import Step, Tables
-from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+from mitlc.task.potential import shaped, world_potential
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
 
 class Episodes(Protocol):
@@ -95,75 +97,70 @@ def step_discounts(accepting: BoolArray, discount: Discount) -> FloatArray:
     return np.full(len(accepting), discount.gamma)
 
 
-def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
-    """Per automaton state, the fewest letters to a transition that marks an acceptance set or
-    enters a satisfied state (0 when satisfied; violated and hopeless states get one more than
-    the largest finite distance)."""
-    num_q = len(automaton.states)
-    inf = float(num_q + 1)
-    distance = np.full(num_q, inf)
-    for q, state in enumerate(automaton.states):
-        if state.verdict == "satisfied":
-            distance[q] = 0.0
-    rows = automaton.rows
-    sources = np.repeat(np.arange(num_q), [len(row.targets) for row in rows])
-    targets = np.asarray([t for row in rows for t in row.targets], dtype=np.int64)
-    direct = np.where([any(row.marks) for row in rows], 1.0, inf)
-    for _ in range(num_q):
-        nearest = np.full(num_q, np.inf)
-        np.minimum.at(nearest, sources, distance[targets])
-        updated = np.minimum(distance, np.minimum(direct, 1.0 + nearest))
-        updated[distance == 0.0] = 0.0
-        if np.array_equal(updated, distance):
-            break
-        distance = updated
-    finite = distance[distance < inf]
-    result: FloatArray = np.where(
-        distance < inf, distance, (finite.max() if len(finite) else 0) + 1
-    )
-    return result
-
-
-def automaton_potential(automaton: DigitalAutomaton, scale: float) -> FloatArray:
-    """The shaping potential of each automaton state, ``-scale`` times its distance to
-    acceptance, and one more entry, 0, for an episode's end (Ng, Harada and Russell, ICML
-    1999: potential-based shaping keeps the optimal policies)."""
-    phi: FloatArray = np.append(-scale * automaton_distance(automaton), 0.0)
+def product_potential(
+    tables: Tables, world: World, automaton: DigitalAutomaton, scale: float, reach: float = 0.0
+) -> FloatArray:
+    """The shaping potential of each product state: ``scale`` times the task's potential of its
+    world and automaton states (:func:`mitlc.task.potential.world_potential`); 0 at the
+    absorbing states (an episode's end)."""
+    table = world_potential(world, automaton, reach)
+    live = tables.world_state >= 0
+    phi: FloatArray = np.zeros(len(tables.world_state))
+    phi[live] = scale * table[tables.automaton_state[live], tables.world_state[live]]
     return phi
 
 
-def potential(tables: Tables, automaton: DigitalAutomaton, scale: float) -> FloatArray:
-    """The shaping potential of each product state: its automaton state's
-    (:func:`automaton_potential`); 0 at the absorbing states (an episode's end)."""
-    by_state = automaton_potential(automaton, scale)
-    phi: FloatArray = by_state[np.maximum(tables.automaton_state, 0)]
-    phi[tables.world_state < 0] = 0.0
-    return phi
+class Shaping(Protocol):
+    """Where a learner reads the (scaled) potential of the states its episodes are in and
+    reach: :class:`ProductShaping` or :class:`EnvShaping`."""
+
+    def before(self, env: Episodes) -> FloatArray: ...
+    def after(self, step: Step) -> FloatArray: ...
+
+
+@dataclass(frozen=True, slots=True)
+class ProductShaping:
+    """The potential of product states (:func:`product_potential`)."""
+
+    phi: FloatArray
+
+    def before(self, env: Episodes) -> FloatArray:
+        """The potential of the episodes' product states now."""
+        return self.phi[env.state]
+
+    def after(self, step: Step) -> FloatArray:
+        """The potential of the product states reached (0 where an episode ended decided)."""
+        return self.phi[step.next_state]
+
+
+@dataclass(frozen=True, slots=True)
+class EnvShaping:
+    """The potential the task wrapper reports (``info["potential"]``, 0 where an episode
+    ended decided), times ``scale``."""
+
+    scale: float
+
+    def before(self, env: Episodes) -> FloatArray:
+        """The potential of the episodes' positions now."""
+        return self.scale * np.asarray(env.potential, dtype=np.float64)  # type: ignore[attr-defined]
+
+    def after(self, step: Step) -> FloatArray:
+        """The potential of the positions reached."""
+        assert step.next_potential is not None, "the wrapped envs report their potential"
+        return self.scale * np.asarray(step.next_potential, dtype=np.float64)
 
 
 def learning_signal(
-    step: Step, before: IntArray, config: TrainConfig, phi: FloatArray | None
+    step: Step, before: FloatArray | None, config: TrainConfig, shaping: Shaping | None
 ) -> tuple[FloatArray, FloatArray]:
-    """The reward a learner maximises and the discount of each transition of ``step``
-    (:func:`transition_signal`): the shaping reads the automaton state of the observation,
-    ``before`` the step and ``step.next_automaton`` after it (an ended episode's end where the
-    task was decided); ``phi`` is :func:`automaton_potential`."""
-    return transition_signal(
-        step.reward, step.accepting, before, after_automaton(step, phi), config, phi
-    )
-
-
-def after_automaton(step: Step | None, phi: FloatArray | None, *,
-                    automaton: IntArray | None = None,
-                    terminated: BoolArray | None = None) -> IntArray:  # fmt: skip
-    """The index into :func:`automaton_potential` of the state each transition reached: its
-    automaton state, or the last entry (an episode's end) where the task was decided."""
-    if step is not None:
-        automaton, terminated = step.next_automaton, step.terminated
-    assert automaton is not None and terminated is not None
-    end = len(phi) - 1 if phi is not None else 0
-    after: IntArray = np.where(terminated, end, automaton)
-    return after
+    """The reward a learner maximises and the discount of each transition of ``step``: the
+    world's reward, shaped (:func:`mitlc.task.potential.shaped`) from ``before``, the potential
+    of the states left (``shaping.before`` of the episodes before the step), to that of the
+    states reached."""
+    gammas = step_discounts(step.accepting, config.discount)
+    if shaping is None or before is None:
+        return step.reward, gammas
+    return shaped(step.reward, gammas, before, shaping.after(step)), gammas
 
 
 def transition_signal(
@@ -175,11 +172,11 @@ def transition_signal(
     phi: FloatArray | None,
 ) -> tuple[FloatArray, FloatArray]:
     """The reward a learner maximises and the discount of each transition ``before -> after``
-    (product states): the world's reward, plus ``gamma * phi(after) - phi(before)`` with
-    shaping on."""
+    (product states): the world's reward, shaped with the product states' potential ``phi``
+    when there is one."""
     gammas = step_discounts(accepting, config.discount)
     if phi is not None:
-        reward = reward + gammas * phi[after] - phi[before]
+        reward = shaped(reward, gammas, phi[before], phi[after])
     return reward, gammas
 
 

@@ -29,16 +29,17 @@ from mitlc.learn.learners.base import (
     Episodes,
     Learner,
     Policy,
-    after_automaton,
+    ProductShaping,
+    Shaping,
     epsilon_at,
     learning_signal,
     random_valid,
     transition_signal,
 )
 from mitlc.learn.learners.crm import Batch, Counterfactuals
+from mitlc.learn.learners.encoder import Encoder
 from mitlc.learn.learners.images import q_network
 from mitlc.learn.learners.nets import (
-    Encoder,
     Ring,
     anneal,
     bootstrap,
@@ -54,7 +55,7 @@ from mitlc.learn.learners.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.worlds.model import FloatArray, IntArray
+from mitlc.worlds.model import IntArray
 
 
 class DQNPolicy(Policy):
@@ -100,7 +101,7 @@ class DQNLearner(Learner):
         tables: Tables | None,
         config: TrainConfig,
         rng: np.random.Generator,
-        phi: FloatArray | None = None,
+        shaping: Shaping | None = None,
         counterfactuals: Counterfactuals | None = None,
         *,
         encoder: Encoder | None = None,
@@ -110,7 +111,7 @@ class DQNLearner(Learner):
         (:class:`mitlc.learn.envs.envvec.VectorTask`), with the ``encoder`` of its observations
         (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
-        self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
+        self.tables, self.config, self.rng, self.shaping = tables, config, rng, shaping
         self.counterfactuals = counterfactuals
         """With them (``dqn.crm``), every world step also stores the transitions of every
         other automaton state and frontier it tells about (:mod:`mitlc.learn.learners.crm`)."""
@@ -175,8 +176,9 @@ class DQNLearner(Learner):
         state, observation, mask = env.state, env.observation, env.mask
         automaton = env.automaton
         actions = self._act(env, automaton)
+        before = self.shaping.before(env) if self.shaping is not None else None
         step = env.step(actions)
-        reward, gammas = learning_signal(step, automaton, self.config, self.phi)
+        reward, gammas = learning_signal(step, before, self.config, self.shaping)
         entries = {
             "observation": observation,
             "automaton": automaton,
@@ -207,9 +209,9 @@ class DQNLearner(Learner):
         the cell)."""
         automaton = self.encoder.automaton_of(batch.state)
         reached = self.encoder.automaton_of(batch.next_state)
-        after = after_automaton(None, self.phi, automaton=reached, terminated=batch.terminated)
+        phi = self.shaping.phi if isinstance(self.shaping, ProductShaping) else None
         reward, gammas = transition_signal(
-            batch.reward, batch.accepting, automaton, after, self.config, self.phi
+            batch.reward, batch.accepting, batch.state, batch.next_state, self.config, phi
         )
         tables = self.tables
         assert tables is not None, "counterfactuals come from a finite product"

@@ -32,13 +32,14 @@ from mitlc.learn.learners.base import (
     Episodes,
     Learner,
     Policy,
+    Shaping,
     epsilon_at,
     learning_signal,
     random_valid,
 )
+from mitlc.learn.learners.encoder import Encoder
 from mitlc.learn.learners.images import ImageFeatures, image_features
 from mitlc.learn.learners.nets import (
-    Encoder,
     Ring,
     anneal,
     bootstrap,
@@ -196,7 +197,7 @@ class DRQNLearner(Learner):
         tables: Tables | None,
         config: TrainConfig,
         rng: np.random.Generator,
-        phi: FloatArray | None = None,
+        shaping: Shaping | None = None,
         *,
         encoder: Encoder | None = None,
         num_actions: int | None = None,
@@ -206,7 +207,7 @@ class DRQNLearner(Learner):
         ``encoder`` of its observations (made with ``previous_action`` as the settings say),
         its ``num_actions`` and the task's ``horizon``."""
         configure_torch()
-        self.tables, self.config, self.rng, self.phi = tables, config, rng, phi
+        self.tables, self.config, self.rng, self.shaping = tables, config, rng, shaping
         self.settings: DRQNConfig = config.drqn
         s = self.settings
         if tables is not None:
@@ -273,8 +274,9 @@ class DRQNLearner(Learner):
         valid = env.valid_actions()
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy(values[:, 0], valid))
+        before = self.shaping.before(env) if self.shaping is not None else None
         step = env.step(actions)
-        reward, gammas = learning_signal(step, automaton, self.config, self.phi)
+        reward, gammas = learning_signal(step, before, self.config, self.shaping)
         self._record(step, actions, reward * s.reward_scale, gammas, after)
         self.vector_steps += 1
         if self.replay.size >= s.warmup_sequences and self.vector_steps % s.train_every == 0:

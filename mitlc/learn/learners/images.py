@@ -22,7 +22,8 @@ import torch
 from torch import nn
 
 from mitlc.gym.observations import ImagePart
-from mitlc.learn.learners.nets import Encoder, mlp
+from mitlc.learn.learners.encoder import Encoder
+from mitlc.learn.learners.nets import mlp
 
 NATURE_SIDE = 36
 """The smallest side the Nature CNN reads (its three convolutions leave one pixel)."""

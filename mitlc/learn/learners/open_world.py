@@ -43,10 +43,10 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         )
     if (config.algo == "dqn" and config.dqn.crm) or (config.algo == "q" and config.q.crm):
         raise RunError("counterfactual experience needs a finite product: not here")
-    from mitlc.learn.learners.base import automaton_potential
-    from mitlc.learn.learners.nets import Encoder
+    from mitlc.learn.learners.base import EnvShaping
+    from mitlc.learn.learners.encoder import Encoder, task_features
 
-    phi = automaton_potential(setting.automaton, config.shaping) if config.shaping else None
+    shaping = EnvShaping(config.shaping) if config.shaping else None
     probe = task_vector_of(setting, 1, 0)
     space = probe.observation_space
     own = space[probe.env_key]
@@ -59,7 +59,7 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         if not isinstance(own, Discrete):
             raise RunError(f"tabular Q-learning needs a discrete observation, not {own}: use "
                            "--algo dqn or drqn")  # fmt: skip
-        if phi is not None:
+        if shaping is not None:
             raise RunError("shaping with tabular Q-learning needs a finite product: not here")
         from mitlc.learn.learners.qlearning_env import ObservedQLearner
 
@@ -74,14 +74,15 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         previous_action=recurrent and config.drqn.previous_action,
         tiles=config.drqn.tiles if recurrent else config.dqn.tiles,
         images=probe.images,
+        task_features=task_features(setting.automaton, config.task_obs),
     )
     if recurrent:
         from mitlc.learn.learners.drqn import DRQNLearner
 
         return DRQNLearner(
-            None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions,
+            None, config, rng, shaping, encoder=encoder, num_actions=probe.num_actions,
             horizon=setting.world.horizon,
         )  # fmt: skip
     from mitlc.learn.learners.dqn import DQNLearner
 
-    return DQNLearner(None, config, rng, phi, encoder=encoder, num_actions=probe.num_actions)
+    return DQNLearner(None, config, rng, shaping, encoder=encoder, num_actions=probe.num_actions)

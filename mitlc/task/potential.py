@@ -1,0 +1,191 @@
+"""The task's shaping potential: how far a run is from doing its task.
+
+Potential-based shaping (Ng, Harada and Russell, "Policy invariance under reward
+transformations", ICML 1999) adds ``F = gamma_t * Phi(s') - Phi(s)`` to the reward of each
+transition ``s -> s'``. Along any run the added rewards telescope, so every policy's return
+from ``s`` changes by the same ``-Phi(s)`` and the optimal policies do not change (their
+Theorem 1). The discount ``gamma_t`` is the transition's own: the constant ``gamma``, or under
+the accepting discount ``gamma_accept`` on steps that add an acceptance set; the sum still
+telescopes, ``sum_t G_t (gamma_t Phi_{t+1} - Phi_t) = -Phi_0`` with ``G_t`` the product of the
+discounts before step ``t``, because each ``Phi_{t+1}`` enters once with ``G_{t+1} = G_t
+gamma_t`` and once with ``-G_{t+1}``. ``Phi`` is 0 where an episode ends decided (nothing is
+bootstrapped there); at a cut (the horizon) a learner bootstraps, so ``Phi`` of the state
+reached counts as it should. :func:`shaped` is that one rule.
+
+The potential of a position ``s`` (the env's) in automaton state ``q`` is
+
+    Phi(s, q) = -( d(q) + ENV_WEIGHT * min(1, e(s, q) / reach) + TIME_WEIGHT * u(q) )
+
+* ``d(q)``: the fewest letters from ``q`` to a transition that marks an acceptance set or
+  enters a satisfied state (:func:`automaton_distance`);
+* ``e(s, q)``: the least distance from ``s`` to where a proposition that *advances* ``q``
+  holds (its letter alone leads elsewhere than the empty letter does, and no farther from
+  acceptance, or marks a set the empty letter does not): in a finite
+  world the fewest steps (:func:`world_distances`), in an env the Euclidean distance of the
+  labels' regions and positions (:mod:`mitlc.labels.distance`); 0 where no such proposition
+  has a distance; ``reach`` scales it (beyond it, the pull is flat);
+* ``u(q)``: the urgency, the largest of ``q``'s clocks over its bound (the clock view,
+  :mod:`mitlc.automata.clocks`): the share of the current deadline already spent.
+
+The weights keep one step of the automaton worth more than the whole pull of the env's
+distance and of the time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from mitlc.automata.clocks import ClockViewError, clock_view_of
+from mitlc.automata.digital import DigitalAutomaton
+from mitlc.worlds.model import World
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray2 = npt.NDArray[np.bool_]
+
+ENV_WEIGHT = 0.5
+TIME_WEIGHT = 0.25
+
+
+def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
+    """Per automaton state, the fewest letters to a transition that marks an acceptance set or
+    enters a satisfied state (0 when satisfied; violated and hopeless states get one more than
+    the largest finite distance)."""
+    num_q = len(automaton.states)
+    inf = float(num_q + 1)
+    distance = np.full(num_q, inf)
+    for q, state in enumerate(automaton.states):
+        if state.verdict == "satisfied":
+            distance[q] = 0.0
+    rows = automaton.rows
+    sources = np.repeat(np.arange(num_q), [len(row.targets) for row in rows])
+    targets = np.asarray([t for row in rows for t in row.targets], dtype=np.int64)
+    direct = np.where([any(row.marks) for row in rows], 1.0, inf)
+    for _ in range(num_q):
+        nearest = np.full(num_q, np.inf)
+        np.minimum.at(nearest, sources, distance[targets])
+        updated = np.minimum(distance, np.minimum(direct, 1.0 + nearest))
+        updated[distance == 0.0] = 0.0
+        if np.array_equal(updated, distance):
+            break
+        distance = updated
+    finite = distance[distance < inf]
+    result: FloatArray = np.where(
+        distance < inf, distance, (finite.max() if len(finite) else 0) + 1
+    )
+    return result
+
+
+@dataclass(frozen=True, slots=True)
+class TaskPotential:
+    """The parts of ``Phi`` that depend on the task alone (see the module docstring)."""
+
+    distance: FloatArray
+    """``d(q)`` per automaton state."""
+    advancing: BoolArray2
+    """``advancing[q, i]``: proposition ``i`` advances state ``q``."""
+    urgency: FloatArray
+    """``u(q)`` per automaton state."""
+
+    def of(self, q: int, env_distances: Sequence[float | None], reach: float) -> float:
+        """``Phi`` of automaton state ``q`` where each proposition is ``env_distances[i]`` away
+        (``None``: no distance)."""
+        near = [d for i, d in enumerate(env_distances) if d is not None and self.advancing[q, i]]
+        pull = min(min(near) / reach, 1.0) if near else 0.0
+        return -float(self.distance[q] + ENV_WEIGHT * pull + TIME_WEIGHT * self.urgency[q])
+
+    def table(self, env_distances: FloatArray, reach: float) -> FloatArray:
+        """``Phi`` of every (automaton state, position): ``env_distances[i, s]`` is how far
+        position ``s`` is from proposition ``i`` (``inf`` where it never holds, ``nan``: no
+        distance); rows are automaton states."""
+        known = ~np.isnan(env_distances)  # (P, S)
+        scaled = np.where(known, np.minimum(env_distances / reach, 1.0), np.inf)
+        chosen = np.where(self.advancing[:, :, None], scaled[None, :, :], np.inf)  # (Q, P, S)
+        pull = chosen.min(axis=1) if chosen.shape[1] else np.full((len(self.distance), 0), 0.0)
+        pull = np.where(np.isfinite(pull), pull, 0.0)
+        phi: FloatArray = -(
+            self.distance[:, None] + ENV_WEIGHT * pull + TIME_WEIGHT * self.urgency[:, None]
+        )
+        return phi
+
+
+def task_potential(automaton: DigitalAutomaton) -> TaskPotential:
+    """The task's part of the potential of ``automaton`` (module docstring)."""
+    distance = automaton_distance(automaton)
+    num_props = len(automaton.propositions)
+    advancing = np.zeros((len(distance), num_props), dtype=np.bool_)
+    for q in range(len(distance)):
+        if distance[q] == 0.0:
+            continue
+        idle, idle_marks = automaton.successor(q, 0)
+        for i in range(num_props):
+            target, marks = automaton.successor(q, 1 << i)
+            advancing[q, i] = (bool(marks) and not idle_marks) or (
+                target != idle and distance[target] <= distance[idle]
+            )
+    try:
+        view = clock_view_of(automaton)
+    except ClockViewError:
+        urgency = np.zeros(len(distance))
+    else:
+        clocks = view.features()[:, view.num_locations :].astype(np.float64)
+        urgency = clocks.max(axis=1) if view.num_clocks else np.zeros(len(distance))
+    return TaskPotential(distance, advancing, urgency)
+
+
+def shaped(
+    reward: FloatArray, gamma: FloatArray, before: FloatArray, after: FloatArray
+) -> FloatArray:
+    """The shaped reward of transitions: ``reward + gamma * after - before`` (the potentials,
+    scaled, of the states left and reached; 0 where an episode ended decided)."""
+    result: FloatArray = reward + gamma * after - before
+    return result
+
+
+def world_distances(
+    transitions_indptr: IntArray,
+    transitions_targets: IntArray,
+    num_actions: int,
+    holds: npt.NDArray[np.bool_],
+) -> FloatArray:
+    """The fewest steps from each world state to a state where each proposition holds
+    (``holds[i, s]``), over the transitions' support (row ``s * num_actions + a``); ``inf``
+    where none can be reached."""
+    num_props, num_states = holds.shape
+    rows = np.arange(num_states * num_actions)
+    sources = np.repeat(rows // num_actions, np.diff(transitions_indptr))
+    targets = transitions_targets
+    result = np.full((num_props, num_states), np.inf)
+    for i in range(num_props):
+        distance = np.where(holds[i], 0.0, np.inf)
+        for _ in range(num_states):
+            nearest = np.full(num_states, np.inf)
+            np.minimum.at(nearest, sources, distance[targets] + 1.0)
+            updated = np.minimum(distance, nearest)
+            if np.array_equal(updated, distance):
+                break
+            distance = updated
+        result[i] = distance
+    return result
+
+
+def world_potential(world: World, automaton: DigitalAutomaton, reach: float = 0.0) -> FloatArray:
+    """``Phi`` of every (automaton state, world state) of a finite world, the env's distance
+    being the fewest steps to where each proposition holds (:func:`world_distances`);
+    ``reach`` (0: the longest such distance) scales it."""
+    props = automaton.propositions
+    letters = np.asarray(world.letters, dtype=np.int64)
+    holds = np.zeros((len(props), world.num_states), dtype=np.bool_)
+    for i, p in enumerate(props):
+        if p in world.propositions:
+            holds[i] = (letters >> world.propositions.index(p)) & 1
+    env = world_distances(
+        world.transitions.indptr, world.transitions.targets, world.num_actions, holds
+    )
+    finite = env[np.isfinite(env)]
+    reach = reach or max(float(finite.max()) if finite.size else 1.0, 1.0)
+    return task_potential(automaton).table(env, reach)
