@@ -36,14 +36,8 @@ def _to_disc(x: np.ndarray[Any, Any], center: Sequence[float], radius: float) ->
 
 
 def _region(region: Region, value: Any) -> float | None:
-    x = vector(value)
+    x = region.point(value)
     if x is None:
-        return None
-    if region.index:
-        if max(region.index) >= len(x):
-            return None
-        x = x[list(region.index)]
-    elif len(x) != region.size:
         return None
     if region.radius >= 0.0:
         return _to_disc(x, region.center, region.radius)

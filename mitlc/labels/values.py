@@ -266,16 +266,19 @@ class Region:
         """How many entries the region reads."""
         return len(self.low or self.center)
 
-    def __call__(self, value: Any) -> bool:
-        """Whether it holds."""
+    def point(self, value: Any) -> np.ndarray[Any, Any] | None:
+        """The entries of ``value`` the region reads (``None`` where it has too few)."""
         x = vector(value)
         if x is None:
-            return False
+            return None
         if self.index:
-            if max(self.index) >= len(x):
-                return False
-            x = x[list(self.index)]
-        elif len(x) != self.size:
+            return x[list(self.index)] if max(self.index) < len(x) else None
+        return x if len(x) == self.size else None
+
+    def __call__(self, value: Any) -> bool:
+        """Whether it holds."""
+        x = self.point(value)
+        if x is None:
             return False
         if self.radius >= 0.0:
             return float(np.sum((x - np.asarray(self.center)) ** 2)) <= self.radius**2
