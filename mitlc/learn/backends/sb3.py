@@ -318,7 +318,7 @@ def _train(
             if run.logged_at != tally.steps:  # the last line, at the run's end or stop
                 log_window(run.metrics, tally, run.epsilon())
     finally:
-        run.save()
+        run.save(final=True)
     stopped = run.stopped and tally.steps < s.steps
     unseen = run_never_held(setting.finite, setting.automaton.propositions, venv.envs)
     if not stopped:
@@ -354,9 +354,11 @@ class _Run:
         """DQN's exploration rate (0 for the others, which explore by sampling or noise)."""
         return float(getattr(self.state.model, "exploration_rate", 0.0))
 
-    def save(self) -> None:
-        """Checkpoint, unless nothing changed since the last one."""
-        if self.tally.steps != self.saved_at:
+    def save(self, final: bool = False) -> None:
+        """Checkpoint, unless no step was taken since the last one and this is not the ``final``
+        one (the model learns after the callback of its last step: a PPO update, an off-policy
+        gradient step)."""
+        if final or self.tally.steps != self.saved_at:
             data = {"model": self.state.state_dict(), "tally": self.tally.state_dict()}
             checkpoint.save(self.directory, self.tally.steps, data, self.config.keep_checkpoints)
             self.saved_at = self.tally.steps
