@@ -51,31 +51,36 @@ ENV_WEIGHT = 0.5
 TIME_WEIGHT = 0.25
 
 
+def fewest_steps(sources: IntArray, targets: IntArray, initial: FloatArray) -> FloatArray:
+    """The least of ``initial[x]`` and ``1 +`` the least over the edges ``x -> y`` of ``y``'s
+    own, at the fixed point: with ``initial`` 0 at some states and ``inf`` elsewhere, the fewest
+    edges to one of them (relaxed over every edge at once, as many rounds as the longest path)."""
+    distance = initial.copy()
+    for _ in range(len(distance)):
+        nearest = np.full(len(distance), np.inf)
+        np.minimum.at(nearest, sources, distance[targets] + 1.0)
+        updated = np.minimum(distance, nearest)
+        if np.array_equal(updated, distance):
+            break
+        distance = updated
+    return distance
+
+
 def automaton_distance(automaton: DigitalAutomaton) -> FloatArray:
     """Per automaton state, the fewest letters to a transition that marks an acceptance set or
     enters a satisfied state (0 when satisfied; violated and hopeless states get one more than
     the largest finite distance)."""
-    num_q = len(automaton.states)
-    inf = float(num_q + 1)
-    distance = np.full(num_q, inf)
-    for q, state in enumerate(automaton.states):
-        if state.verdict == "satisfied":
-            distance[q] = 0.0
     rows = automaton.rows
+    num_q = len(rows)
+    satisfied = np.array([state.verdict == "satisfied" for state in automaton.states])
+    marked = np.array([any(row.marks) for row in rows])
+    initial = np.where(satisfied, 0.0, np.where(marked, 1.0, np.inf))
     sources = np.repeat(np.arange(num_q), [len(row.targets) for row in rows])
     targets = np.asarray([t for row in rows for t in row.targets], dtype=np.int64)
-    direct = np.where([any(row.marks) for row in rows], 1.0, inf)
-    for _ in range(num_q):
-        nearest = np.full(num_q, np.inf)
-        np.minimum.at(nearest, sources, distance[targets])
-        updated = np.minimum(distance, np.minimum(direct, 1.0 + nearest))
-        updated[distance == 0.0] = 0.0
-        if np.array_equal(updated, distance):
-            break
-        distance = updated
-    finite = distance[distance < inf]
+    distance = fewest_steps(sources, targets, initial)
+    finite = distance[np.isfinite(distance)]
     result: FloatArray = np.where(
-        distance < inf, distance, (finite.max() if len(finite) else 0) + 1
+        np.isfinite(distance), distance, (finite.max() if len(finite) else 0) + 1
     )
     return result
 
@@ -158,18 +163,9 @@ def world_distances(
     num_props, num_states = holds.shape
     rows = np.arange(num_states * num_actions)
     sources = np.repeat(rows // num_actions, np.diff(transitions_indptr))
-    targets = transitions_targets
     result = np.full((num_props, num_states), np.inf)
     for i in range(num_props):
-        distance = np.where(holds[i], 0.0, np.inf)
-        for _ in range(num_states):
-            nearest = np.full(num_states, np.inf)
-            np.minimum.at(nearest, sources, distance[targets] + 1.0)
-            updated = np.minimum(distance, nearest)
-            if np.array_equal(updated, distance):
-                break
-            distance = updated
-        result[i] = distance
+        result[i] = fewest_steps(sources, transitions_targets, np.where(holds[i], 0.0, np.inf))
     return result
 
 
