@@ -59,7 +59,10 @@ plumbing between the monitor and the environment:
 * **info.** The env's last info, plus ``env_ended``, ``verdict``, ``marks`` (acceptance-set
   indices), ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
   ``invalid_action``, ``automaton_state``, ``accepting`` (the step added a set to the
-  frontier: the monitor's ``new``) and, with a ``Discrete`` action space, ``action_mask`` (the
+  frontier: the monitor's ``new``), ``letter`` (the letter the task read on this step, that of
+  the position left; -1 where it read none: a reset or a jump), ``env_reward`` (the env's
+  reward of the step, 0 where the env did not step) and, with a ``Discrete`` action space,
+  ``action_mask`` (the
   valid actions now, :meth:`TaskWrapper.masks_of`; gymnasium's toy-text convention, so that a
   vector env's ``final_info`` carries the mask of the state an episode ended in).
 
@@ -416,10 +419,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                 if self._env_actions <= a < self._num_actions:
                     return self._jump(a - self._env_actions)
                 raise ValueError(f"action {action!r} is not in {self.action_space}")
-        monitor = self.monitor
-        state, marks, new, reward, verdict, decided, success = monitor.step(
-            self._state, self._letter
-        )
+        monitor, read, env_reward = self.monitor, self._letter, 0.0
+        state, marks, new, reward, verdict, decided, success = monitor.step(self._state, read)
         if self._ended:  # the world stays on its last position: the env is not stepped
             obs, env_info = self._env_obs, self._env_info
         else:
@@ -457,6 +458,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["invalid_action"] = False
         info["automaton_state"] = q
         info["accepting"] = new > 0
+        info["letter"] = read
+        info["env_reward"] = float(env_reward)
         if self._discrete:
             info["action_mask"] = self.masks_of(q).copy()
         if self._shaping is not None:
@@ -573,6 +576,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["invalid_action"] = invalid
         info["automaton_state"] = state.q
         info["accepting"] = accepting
+        info["letter"] = -1
+        info["env_reward"] = 0.0
         if self._discrete:
             info["action_mask"] = self.masks_of(state.q).copy()
         if self._shaping is not None:
