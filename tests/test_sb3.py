@@ -18,6 +18,7 @@ pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
 
 from mitlc.cli import app
+from mitlc.gym.shaping import ShapedReward
 from mitlc.learn.backends.sb3 import wrapped_env
 from mitlc.learn.backends.sb3_policy import SB3Learner, SB3Policy
 from mitlc.learn.run import load_learner
@@ -115,11 +116,15 @@ def test_resume_continues_the_step_count_and_keeps_the_weights(tmp_path: Path) -
     assert done.exit_code == 1 and "already has 512 steps" in done.output
 
 
-def test_the_greedy_policy_is_the_one_sb3_predicts_on_the_wrapped_env(tmp_path: Path) -> None:
+@pytest.mark.parametrize("extra", [(), ("task_obs=clocks", "shaping=1")])
+def test_the_greedy_policy_is_the_one_sb3_predicts_on_the_wrapped_env(
+    tmp_path: Path, extra: tuple[str, ...]
+) -> None:
     """The policy that eval and plot run in the simulator acts as ``predict(obs,
-    deterministic=True)`` does on the wrapped env, state by state."""
+    deterministic=True)`` does on the wrapped env, state by state: with the state's one-hot,
+    and with the clocks observation under shaping (the encoder's layout is the wrapper's)."""
     out = tmp_path / "run"
-    assert train(out, "sb3-ppo", 512).exit_code == 0
+    assert train(out, "sb3-ppo", 512, *extra).exit_code == 0
     setting, learner = load_learner(out)
     policy = learner.policy()
     assert isinstance(learner, SB3Learner) and isinstance(policy, SB3Policy)
@@ -134,7 +139,8 @@ def test_the_greedy_policy_is_the_one_sb3_predicts_on_the_wrapped_env(tmp_path: 
         done = False
         while not done:
             action, _ = learner.net.predict(obs, deterministic=True)
-            product: Any = env
+            product: Any = env.env if isinstance(env, ShapedReward) else env
+            assert isinstance(env, ShapedReward) == bool(extra)
             x = index[(product.world_state, product.automaton_state)]
             assert t.choice[x, int(action)] == choices[int(product.frontier), x]
             compared += 1
@@ -161,7 +167,7 @@ def test_plot_draws_an_sb3_run(tmp_path: Path) -> None:
         ("sb3.exploration_fraction=2", "training.sb3.exploration_fraction: expected a value in"),
         ("sb3.steps=0", "training.sb3.steps: expected a positive value"),
         ("sb3.n_stepz=3", "training.sb3.n_stepz: unknown setting"),
-        ("shaping=1", "SB3 learns with a constant discount and no shaping"),
+        ("discount.mode=accepting", "SB3 learns with a constant discount"),
     ],
 )
 def test_bad_settings_name_their_path(tmp_path: Path, setting: str, message: str) -> None:

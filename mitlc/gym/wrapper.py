@@ -424,11 +424,12 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._ended:  # the world stays on its last position: the env is not stepped
             obs, env_info = self._env_obs, self._env_info
         else:
-            obs, env_reward, inner_terminated, inner_truncated, env_info = self.env.step(action)
+            obs, gained, inner_terminated, inner_truncated, env_info = self.env.step(action)
+            env_reward = float(gained)
             self._env_obs, self._env_info = obs, env_info
-            self._take_letter(obs, env_info, float(env_reward), bool(inner_terminated))
+            self._take_letter(obs, env_info, env_reward, bool(inner_terminated))
             if self._add:
-                reward += float(env_reward)
+                reward += env_reward
             if inner_terminated or inner_truncated:
                 self._ended = True
                 if not inner_terminated and not decided and state.steps < self.horizon:
@@ -459,7 +460,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["automaton_state"] = q
         info["accepting"] = new > 0
         info["letter"] = read
-        info["env_reward"] = float(env_reward)
+        info["env_reward"] = env_reward
         if self._discrete:
             info["action_mask"] = self.masks_of(q).copy()
         if self._shaping is not None:

@@ -272,7 +272,7 @@ class TrainConfig:
     digital automaton's state; ``clocks``, the T-LDGBA's location (one-hot) and its clocks
     scaled by their bounds (:mod:`mitlc.automata.clocks`); ``auto``, the clocks where the
     automaton has more than 64 states and its folding has clocks, else the state
-    (:data:`mitlc.learn.learners.encoder.AUTO_CLOCKS`). (Tabular Q-learning reads product
+    (:func:`mitlc.automata.clocks.clocks_shown`). (Tabular Q-learning reads product
     states.)"""
     q: QConfig = field(default_factory=QConfig)
     dqn: DQNConfig = field(default_factory=DQNConfig)

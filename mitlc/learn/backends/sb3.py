@@ -19,7 +19,9 @@ off-policy algorithms is in :mod:`mitlc.learn.backends.sb3_offpolicy`.
   ``gamma``, the run's ``seed`` (SB3's ``seed``) and ``device``
   (:func:`mitlc.learn.device.resolve_device`). The budget is ``sb3.steps`` environment
   steps, the run's total also when resumed; a PPO run ends at the first whole rollout past it.
-  SB3 learns with a constant discount and no shaping: other settings are refused.
+  SB3 learns with a constant discount (``discount.mode: accepting`` is refused); ``task_obs``
+  and ``shaping`` (:class:`mitlc.gym.shaping.ShapedReward`) are read as mitlc's learners read
+  them.
 * **The run directory** is mitlc's (:mod:`mitlc.learn.run`): ``config.json``,
   ``metrics.jsonl`` (a line every ``sb3.log_every`` steps from an SB3 callback: episodes,
   steps, the success rate from ``info["is_success"]`` and the mean return of the episodes ended
@@ -57,6 +59,8 @@ import numpy as np
 import numpy.typing as npt
 import torch
 
+from mitlc.automata.clocks import clocks_shown
+from mitlc.gym.shaping import ShapedReward
 from mitlc.learn.backends.sb3_offpolicy import (
     OFF_POLICY,
     action_noise,
@@ -120,11 +124,20 @@ def algorithm(algo: str) -> tuple[Any, str]:
 
 def wrapped_env(setting: Setting) -> Any:
     """The env an sb3 run learns on: the world's wrapped env with the wrapper's flat
-    observation (the env's observation flattened, one-hot automaton state, frontier bits: the
-    features of :class:`mitlc.learn.learners.nets.Encoder`, which evaluation feeds the same
-    network),
-    for every kind of world (:func:`mitlc.product.worlds.task_env`)."""
-    return task_env(setting.world, setting.automaton, flatten=True)
+    observation (the env's observation flattened, the task's state as a one-hot or by its
+    clocks as ``task_obs`` says, frontier bits: the features of
+    :class:`mitlc.learn.learners.encoder.Encoder`, which evaluation feeds the same network),
+    for every kind of world (:func:`mitlc.product.worlds.task_env`); with ``shaping``, under
+    :class:`mitlc.gym.shaping.ShapedReward` at the run's discount."""
+    config = setting.config
+    clocks = clocks_shown(setting.automaton, config.task_obs)
+    options: dict[str, Any] = {"task_obs": "clocks" if clocks else "state"}
+    if config.shaping:
+        options["potential"] = config.shaping_reach
+    env: Any = task_env(setting.world, setting.automaton, flatten=True, **options)
+    if config.shaping:
+        env = ShapedReward(env, scale=config.shaping, gamma=config.discount.gamma)
+    return env
 
 
 def model_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
@@ -234,8 +247,8 @@ def train(
     """Train ``config.algo`` (an ``sb3-*`` name) as :func:`mitlc.learn.run.train` trains
     mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all, on
     ``config.device``."""
-    if config.discount.mode != "constant" or config.shaping:
-        raise RunError(f"{config.algo}: SB3 learns with a constant discount and no shaping")
+    if config.discount.mode != "constant":
+        raise RunError(f"{config.algo}: SB3 learns with a constant discount")
     algorithm(config.algo)  # SB3 installed?
     device = resolve_device(config.device)
     directory = Path(out)

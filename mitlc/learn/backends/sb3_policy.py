@@ -25,7 +25,7 @@ from gymnasium import spaces
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Learner, Policy
-from mitlc.learn.learners.encoder import Encoder
+from mitlc.learn.learners.encoder import Encoder, task_features
 from mitlc.learn.learners.nets import build, configure_torch, greedy
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import RunError
@@ -125,17 +125,20 @@ class SB3Learner(Learner):
         self.net, self.setting = net, setting
         self.num_envs = setting.config.sb3.num_envs
         # the layout of the wrapper's flat observation, which the network was trained on
+        task = task_features(setting.automaton, setting.config.task_obs)
         if setting.tables is None:
             probe = task_vector_of(setting, 1, 0)
             space = probe.observation_space
             self.encoder = Encoder.of_spaces(
                 space[probe.env_key], len(setting.automaton.states),
                 setting.automaton.num_sets, probe.num_actions, scaled=False,
+                task_features=task,
             )  # fmt: skip
         else:
             self.encoder = Encoder(
-                setting.tables, num_automaton_states=len(setting.automaton.states)
-            )
+                setting.tables, num_automaton_states=len(setting.automaton.states),
+                task_features=task,
+            )  # fmt: skip
 
     def train_step(self, env: Episodes, fraction: float) -> Step:
         """Not here: an sb3 run trains through :func:`train`."""

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import torch
 
-from mitlc.automata.clocks import clock_view_of
+from mitlc.automata.clocks import clock_view_of, clocks_shown
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.gym.observations import ImagePart
 from mitlc.learn.envs.vec import Tables
@@ -175,20 +175,8 @@ class Encoder:
         return torch.from_numpy(x.reshape(*shape, self.size))
 
 
-AUTO_CLOCKS = 64
-"""``task_obs: auto`` shows the clocks of automata with more states than this: on smaller ones
-the state's one-hot learned better (case 1, DQN, seed 0: greedy success 0.957 with the
-one-hot, 0.909 with the clocks; the noisy corridor's recurrent DQN: 0.8 or more, and 0)."""
-
-
 def task_features(automaton: DigitalAutomaton, task_obs: str) -> FloatArray | None:
     """What an :class:`Encoder` shows of each automaton state for the setting ``task_obs``
-    (:attr:`mitlc.learn.config.TrainConfig.task_obs`): ``None`` for the state's one-hot
-    (``state``, or ``auto`` where the automaton has at most :data:`AUTO_CLOCKS` states or its
-    folding no clocks), else the clock view's rows."""
-    if task_obs == "state" or (task_obs == "auto" and len(automaton.states) <= AUTO_CLOCKS):
-        return None
-    view = clock_view_of(automaton)
-    if task_obs == "auto" and not view.num_clocks:
-        return None
-    return view.features()
+    (:attr:`mitlc.learn.config.TrainConfig.task_obs`): the clock view's rows where
+    :func:`mitlc.automata.clocks.clocks_shown`, else ``None`` (the state's one-hot)."""
+    return clock_view_of(automaton).features() if clocks_shown(automaton, task_obs) else None
