@@ -217,8 +217,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._read = letter_reader(self.labels, automaton.propositions)
         self._unwrapped = env.unwrapped
         values = self.labels.values() if isinstance(self.labels, Labeller) else ()
-        self._moment = bool(values)
-        self._probe: list[dict[str, Any]] | None = [] if values else None
+        guides = self.labels.guides() if isinstance(self.labels, Labeller) else ()
+        self._moment = bool(values or guides)
+        self._probe: list[dict[str, Any]] | None = [] if values or guides else None
         self.held = 0
         """The letters read so far, or-ed: bit ``i`` is set once ``automaton.propositions[i]``
         has held (a proposition that never holds is almost always a mistaken label)."""

@@ -11,10 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.labels.declare_values import VALUE_FORMS, value_form
+from mitlc.labels.declare_values import GUIDE, VALUE_FORMS, guide, value_form
 from mitlc.labels.forms import (
     Decoded,
     Form,
+    Guided,
     InBox,
     InDisc,
     LabelDeclarationError,
@@ -93,6 +94,12 @@ def _fail(path: str, message: str) -> LabelDeclarationError:
 def _form(declaration: Any, path: str, space: Any) -> Form:
     if not isinstance(declaration, Mapping):
         raise _fail(path, f"expected a mapping with one of the forms {', '.join(FORMS)}")
+    if GUIDE in declaration:
+        origin, target = guide(declaration[GUIDE], path)
+        rest = {k: v for k, v in declaration.items() if k != GUIDE}
+        inner = _form(rest, path, space)
+        assert not isinstance(inner, Guided), "one guide per form"
+        return Guided(inner, origin, target)
     if any(k in declaration for k in VALUE_FORMS):
         return value_form(declaration, path)
     kinds = [k for k in declaration if k in FORMS]

@@ -33,6 +33,7 @@ from mitlc.labels.values import (
     InfoPath,
     OneOf,
     Region,
+    Step,
     StepReward,
     StepTerminated,
     Test,
@@ -89,7 +90,7 @@ def value_form(declaration: Mapping[str, Any], path: str) -> Value:
     return Value(source, _test(rest, path, TESTS))
 
 
-def _path(text: Any, where: str, attributes: bool) -> tuple[str | int, ...]:
+def _path(text: Any, where: str, attributes: bool) -> tuple[Step, ...]:
     if not isinstance(text, str):
         raise _fail(where, "expected a dotted path such as agent_pos or rewards.arrived_reward")
     try:
@@ -189,3 +190,24 @@ def _yaml_value(value: Any, where: str) -> Any:
 
 
 __all__ = ["VALUE_FORMS", "value_form"]
+
+
+GUIDE = "toward"
+"""The key of a form's guide for shaping: ``toward: {from: {attr: ...}, to: {attr: ...}}``."""
+
+
+def guide(body: Any, path: str) -> tuple[AttrPath | InfoPath, AttrPath | InfoPath]:
+    """A form's ``toward`` compiled: the source of where the agent is (``from``) and of where
+    the form's proposition can be made true (``to``), each an ``attr`` or ``info`` path."""
+    where = f"{path}.{GUIDE}"
+    if not isinstance(body, Mapping) or set(body) != {"from", "to"}:
+        raise _fail(where, "expected {from: {attr: PATH}, to: {attr: PATH}} (or info: PATH)")
+    ends = []
+    for end in ("from", "to"):
+        source, at = body[end], f"{where}.{end}"
+        if not isinstance(source, Mapping) or len(source) != 1 or next(iter(source)) not in PATHS:
+            raise _fail(at, "expected {attr: PATH} or {info: PATH}")
+        kind = next(iter(source))
+        steps = _path(source[kind], f"{at}.{kind}", kind == "attr")
+        ends.append(AttrPath(steps) if kind == "attr" else InfoPath(steps))
+    return ends[0], ends[1]

@@ -10,6 +10,9 @@ where it would hold.
   distance to that point;
 * a value's ``below`` / ``above``: how far the number is past the threshold.
 
+A form with a guide (``toward: {from: ..., to: ...}``) is 0 where it holds, else the distance
+from the ``from`` position to the ``to`` position, both read from the env or its info.
+
 Other forms (a set of discrete observations, a truthy test, an event, a value that cannot be
 read) have none: ``None``. :func:`distances` gives, per proposition, the least distance among
 its forms that have one (``None`` where none has).
@@ -22,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.labels.forms import Form, InBox, InDisc, Labeller, obs_part
+from mitlc.labels.forms import Form, Guided, InBox, InDisc, Labeller, obs_part
 from mitlc.labels.values import MISSING, NO_MOMENT, Bound, Equals, Moment, Region, Value, vector
 
 
@@ -75,6 +78,14 @@ def form_distance(
     form: Form, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT
 ) -> float | None:
     """How far ``(obs, info)`` at ``moment`` is from where ``form`` holds (module docstring)."""
+    if isinstance(form, Guided):
+        if form.form.holds(obs, info, moment):
+            return 0.0
+        origin = vector(form.origin.read(obs, info, moment))
+        target = vector(form.target.read(obs, info, moment))
+        if origin is None or target is None or origin.shape != target.shape:
+            return None
+        return float(np.sqrt(np.sum((origin - target) ** 2)))
     if isinstance(form, Value):
         return _value(form, obs, info, moment)
     if isinstance(form, InBox):
@@ -112,7 +123,7 @@ def has_distance(labeller: Labeller, proposition: str) -> bool:
     below or above)."""
     forms = labeller.forms[labeller.propositions.index(proposition)]
     return any(
-        isinstance(f, InBox | InDisc)
+        isinstance(f, InBox | InDisc | Guided)
         or (isinstance(f, Value) and isinstance(f.test, Region | Equals | Bound))
         for f in forms
     )

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 from mitlc.errors import MitlcError
-from mitlc.labels.values import NO_MOMENT, Moment, Value
+from mitlc.labels.values import NO_MOMENT, AttrPath, InfoPath, Moment, Value
 
 LabelFunction = Callable[[Any, dict[str, Any]], Iterable[str]]
 """A labelling function: ``(obs, info) -> the true propositions``."""
@@ -110,7 +110,23 @@ class InDisc:
         return squared <= self.radius * self.radius
 
 
-Form = ObsIn | Decoded | InBox | InDisc | Value
+@dataclass(frozen=True, slots=True)
+class Guided:
+    """A form with a guide for shaping (``toward``): it holds as ``form`` does; ``origin`` is
+    where the agent is and ``target`` where the proposition can be made true, both read from
+    the env or its info, which only :mod:`mitlc.labels.distance` reads (MiniGrid's key, whose
+    place changes with every episode)."""
+
+    form: ObsIn | Decoded | InBox | InDisc | Value
+    origin: AttrPath | InfoPath
+    target: AttrPath | InfoPath
+
+    def holds(self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT) -> bool:
+        """Whether the form holds."""
+        return self.form.holds(obs, info, moment)
+
+
+Form = ObsIn | Decoded | InBox | InDisc | Value | Guided
 
 
 # -- compiled labels ---------------------------------------------------------------------------
@@ -175,12 +191,23 @@ class Labeller:
 
     def values(self) -> tuple[tuple[str, int, Value], ...]:
         """Each form that reads a value (an attribute, an ``info`` path, an event) with its
-        proposition and its index among the proposition's forms."""
+        proposition and its index among the proposition's forms (a guided form's own)."""
+        found = []
+        for p, forms in zip(self.propositions, self.forms, strict=True):
+            for i, f in enumerate(forms):
+                own = f.form if isinstance(f, Guided) else f
+                if isinstance(own, Value):
+                    found.append((p, i, own))
+        return tuple(found)
+
+    def guides(self) -> tuple[tuple[str, int, Guided], ...]:
+        """Each guided form with its proposition and its index among the proposition's
+        forms."""
         return tuple(
             (p, i, f)
             for p, forms in zip(self.propositions, self.forms, strict=True)
             for i, f in enumerate(forms)
-            if isinstance(f, Value)
+            if isinstance(f, Guided)
         )
 
     def letter_reader(self, propositions: Sequence[str]) -> DeclaredLetters | CachedLetters:

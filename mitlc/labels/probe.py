@@ -23,10 +23,12 @@ from mitlc.labels.values import (
     Bound,
     InfoPath,
     Region,
+    Select,
     Step,
     Test,
     Truthy,
     Value,
+    follow,
     number,
     show_path,
     step_into,
@@ -52,7 +54,35 @@ def attr_problems(labeller: Labeller, env: Any) -> list[str]:
                 problem = _suits(env, form)
             if problem:
                 found.append(f"{where}: {problem}")
+    for where, source in _guide_ends(labeller):
+        if isinstance(source, AttrPath):
+            problem = _guide_problem(env, source, "env.unwrapped")
+            if problem:
+                found.append(f"{where}: {problem}")
     return found
+
+
+def _guide_ends(labeller: Labeller) -> list[tuple[str, AttrPath | InfoPath]]:
+    """Each end of each guide (``toward``), with its field's path."""
+    found: list[tuple[str, AttrPath | InfoPath]] = []
+    for proposition, i, form in labeller.guides():
+        for end, source in (("from", form.origin), ("to", form.target)):
+            kind = "attr" if isinstance(source, AttrPath) else "info"
+            found.append((_where(labeller, proposition, i, f"toward.{end}.{kind}"), source))
+    return found
+
+
+def _guide_problem(root: Any, source: AttrPath | InfoPath, name: str) -> str | None:
+    """Why a guide's end cannot be read as a position from ``root``."""
+    attributes = isinstance(source, AttrPath)
+    problem = _walk(root, source.steps, attributes, name)
+    if problem is not None:
+        return problem
+    value = follow(root, source.steps, attributes)
+    if value is not MISSING and value is not None and vector(value) is None:
+        kind = type(value).__name__
+        return f"{name}.{show_path(source.steps)} is a {kind}, not a position (numbers)"
+    return None
 
 
 def info_problems(labeller: Labeller, infos: Sequence[Mapping[str, Any]]) -> list[str]:
@@ -71,16 +101,20 @@ def info_problems(labeller: Labeller, infos: Sequence[Mapping[str, Any]]) -> lis
             problem = f"{problem}, after reset or the first step"
         if problem:
             found.append(f"{where}: {problem}")
+    for where, source in _guide_ends(labeller):
+        if isinstance(source, InfoPath) and infos:
+            problems = [_guide_problem(info, source, "info") for info in infos]
+            if None not in problems:
+                found.append(f"{where}: {problems[-1]}")
     return found
 
 
 def info_paths_found(labeller: Labeller, info: Mapping[str, Any]) -> bool:
     """Whether every ``info`` path of ``labeller`` is found in ``info``."""
-    return all(
-        _walk(info, form.source.steps, False, "info") is None
-        for _, _, form in labeller.values()
-        if isinstance(form.source, InfoPath)
-    )
+    paths = [form.source.steps for _, _, form in labeller.values()
+             if isinstance(form.source, InfoPath)]  # fmt: skip
+    paths += [source.steps for _, source in _guide_ends(labeller) if isinstance(source, InfoPath)]
+    return all(_walk(info, steps, False, "info") is None for steps in paths)
 
 
 def _walk(root: Any, steps: Sequence[Step], attributes: bool, name: str) -> str | None:
@@ -102,6 +136,11 @@ def _walk(root: Any, steps: Sequence[Step], attributes: bool, name: str) -> str 
 def _missing(value: Any, step: Step, attributes: bool, name: str, done: str) -> str:
     """What was found where ``step`` finds nothing in ``value``."""
     where = f"{name}.{done}" if done else name
+    if isinstance(step, Select):
+        kind = type(value).__name__
+        if not isinstance(value, list | tuple):
+            return f"{where} is a {kind}, not a list to select [{step.name}={step.value}] in"
+        return f"no entry of {where} (a {kind} of {len(value)}) has {step.name} = {step.value!r}"
     if isinstance(step, int):
         size = len(value) if hasattr(value, "__len__") else None
         kind = type(value).__name__

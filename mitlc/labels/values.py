@@ -44,16 +44,29 @@ NO_MOMENT = Moment()
 MISSING: Any = object()
 """What a source gives when its value cannot be read."""
 
-_STEP = re.compile(r"([^.\[\]]+)|\[(-?\d+)\]|(\.)")
+_STEP = re.compile(r"([^.\[\]]+)|\[(-?\d+)\]|(\.)|\[([A-Za-z][A-Za-z0-9_]*)=([^\[\]=]+)\]")
 PUBLIC = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 
-Step = str | int
-"""A step of a path: a name (an attribute or a mapping key) or an index."""
+
+class Select(NamedTuple):
+    """A step ``[name=value]``: the first entry of a list or tuple whose ``name`` (an attribute
+    or a key) reads as ``value`` (MiniGrid's ``grid.grid[type=key]``: the key on the grid)."""
+
+    name: str
+    value: str
+
+
+Step = str | int | Select
+"""A step of a path: a name (an attribute or a mapping key), an index or a selection."""
+
+MAX_SELECT = 1 << 20
+"""A selection looks at no more entries than this (a bound on its time)."""
 
 
 def parse_path(text: str) -> tuple[Step, ...]:
-    """``"grid.grid[23].is_open"`` as ``("grid", "grid", 23, "is_open")``; a ``ValueError``
-    saying what is wrong with a malformed path."""
+    """``"grid.grid[23].is_open"`` as ``("grid", "grid", 23, "is_open")`` (and
+    ``grid.grid[type=key]`` with a :class:`Select`); a ``ValueError`` saying what is wrong
+    with a malformed path."""
     if not isinstance(text, str) or not text:
         raise ValueError("expected a dotted path such as rewards.arrived_reward")
     steps: list[Step] = []
@@ -62,8 +75,13 @@ def parse_path(text: str) -> tuple[Step, ...]:
         match = _STEP.match(text, position)
         if match is None:
             raise ValueError(f"cannot read {text!r} at character {position + 1}")
-        name, index, sep = match.groups()
-        if sep:
+        name, index, sep, field, wanted = match.groups()
+        if field is not None:
+            if dot and steps:
+                raise ValueError(f"a '.' before '[' in {text!r}")
+            steps.append(Select(field, wanted.strip()))
+            dot = False
+        elif sep:
             if dot:
                 raise ValueError(f"an empty step in {text!r}")
             dot = True
@@ -80,16 +98,19 @@ def parse_path(text: str) -> tuple[Step, ...]:
         position = match.end()
     if dot:
         raise ValueError(f"{text!r} ends with '.'")
-    if not steps or isinstance(steps[0], int):
+    if not steps or not isinstance(steps[0], str):
         raise ValueError(f"{text!r} must start with a name")
     return tuple(steps)
 
 
 def show_path(steps: Sequence[Step]) -> str:
-    """A path as written: names joined by dots, indices in brackets."""
+    """A path as written: names joined by dots, indices and selections in brackets."""
     out = ""
     for step in steps:
-        out += f"[{step}]" if isinstance(step, int) else (f".{step}" if out else step)
+        if isinstance(step, Select):
+            out += f"[{step.name}={step.value}]"
+        else:
+            out += f"[{step}]" if isinstance(step, int) else (f".{step}" if out else step)
     return out
 
 
@@ -98,6 +119,8 @@ def step_into(value: Any, step: Step, attributes: bool) -> Any:
     key, a sequence's index, or (``attributes``) a public attribute."""
     if value is None:
         return MISSING
+    if isinstance(step, Select):
+        return _select(value, step, attributes)
     if isinstance(step, int):
         try:
             return value[step]
@@ -107,6 +130,18 @@ def step_into(value: Any, step: Step, attributes: bool) -> Any:
         return value.get(step, MISSING)
     if attributes and PUBLIC.match(step):
         return getattr(value, step, MISSING)
+    return MISSING
+
+
+def _select(value: Any, step: Select, attributes: bool) -> Any:
+    """The first entry of ``value`` (a list or a tuple) whose ``step.name`` reads as
+    ``step.value`` (compared as text), among its first :data:`MAX_SELECT`."""
+    if not isinstance(value, list | tuple):
+        return MISSING
+    for entry in value[:MAX_SELECT]:
+        found = step_into(entry, step.name, attributes)
+        if found is not MISSING and str(plain(found)) == step.value:
+            return entry
     return MISSING
 
 
