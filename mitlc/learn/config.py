@@ -214,6 +214,9 @@ class SB3Config:
     exploration_fraction: float = 0.1
     exploration_final_eps: float = 0.05
     target_update_interval: int = 10_000
+    crm: bool = False
+    """DQN, SAC, TD3: counterfactual experience in the replay memory, every transition's over
+    the task's other states (:mod:`mitlc.learn.backends.sb3_crm`; not with shaping)."""
 
     RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "log_every": (0, math.inf),

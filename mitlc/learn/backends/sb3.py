@@ -63,8 +63,8 @@ from mitlc.automata.clocks import clocks_shown
 from mitlc.gym.shaping import ShapedReward
 from mitlc.learn.backends.sb3_offpolicy import (
     OFF_POLICY,
-    action_noise,
     needs_box,
+    offpolicy_extras,
     offpolicy_settings,
 )
 from mitlc.learn.config import TrainConfig
@@ -143,13 +143,13 @@ def wrapped_env(setting: Setting) -> Any:
 def model_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
     """The keywords given to the SB3 algorithm learning on ``env`` (:func:`wrapped_env`):
     :func:`sb3_settings`, with the features extractor of the images in ``env``'s observation
-    (:func:`mitlc.learn.backends.sb3_images.image_policy_kwargs`) and TD3's action noise, which
-    a checkpoint does not hold (the world decides them)."""
+    (:func:`mitlc.learn.backends.sb3_images.image_policy_kwargs`) and what else a checkpoint
+    does not hold (:func:`~mitlc.learn.backends.sb3_offpolicy.offpolicy_extras`)."""
     from mitlc.learn.backends.sb3_images import image_policy_kwargs
 
     given = sb3_settings(config)
     given["policy_kwargs"] = {**given["policy_kwargs"], **image_policy_kwargs(env)}
-    given.update(action_noise(config, env.action_space))
+    given.update(offpolicy_extras(config, env))
     return given
 
 

@@ -15,6 +15,8 @@ Hoof and Meger, ICML 2018).
   actor_target), every optimiser (actor and critic; SAC's entropy coefficient's when it is
   learned) and SAC's ``log_ent_coef``; the replay memory is not saved, so a resumed run takes
   random actions for ``sb3.learning_starts`` steps, refilling it, before it learns again.
+* **Counterfactual experience** (``sb3.crm``): the replay memory also stores the transitions of
+  the task's other states (:mod:`mitlc.learn.backends.sb3_crm`).
 """
 
 from __future__ import annotations
@@ -59,6 +61,18 @@ def offpolicy_settings(config: TrainConfig) -> tuple[dict[str, Any], dict[str, f
         "gradient_steps": s.gradient_steps,
     }
     return given, optional
+
+
+def offpolicy_extras(config: TrainConfig, env: Any) -> dict[str, Any]:
+    """The keywords of the algorithm learning on ``env`` that a checkpoint does not hold: TD3's
+    :func:`action_noise` and, with ``sb3.crm``, the replay memory of
+    :func:`mitlc.learn.backends.sb3_crm.replay_settings`."""
+    given = action_noise(config, env.action_space)
+    if config.sb3.crm:
+        from mitlc.learn.backends.sb3_crm import replay_settings
+
+        given.update(replay_settings(config, env))
+    return given
 
 
 def action_noise(config: TrainConfig, space: Any) -> dict[str, Any]:

@@ -201,6 +201,9 @@ class VectorTask:
             next_automaton=automaton,
             next_valid=_entry(infos, final, done, "action_mask", self._all_valid()),
             next_potential=_entry(infos, final, done, "potential", np.zeros(self.num_envs)),
+            letter=_entry(infos, final, done, "letter", np.full(self.num_envs, -1)),
+            env_reward=_entry(infos, final, done, "env_reward", np.zeros(self.num_envs)),
+            env_ended=_entry(infos, final, done, "env_ended", np.zeros(self.num_envs, bool)),
         )
         self.returns[done] = 0.0
         self.steps = np.where(done, 0, steps)

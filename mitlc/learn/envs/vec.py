@@ -188,6 +188,14 @@ class Step:
     next_potential: FloatArray | None = None
     """The task's potential of the position reached (``info["potential"]`` of wrapped envs
     that report it; 0 where an episode ended decided)."""
+    letter: IntArray | None = None
+    """The letter the task read on the step (``info["letter"]`` of wrapped envs: that of the
+    position left; -1 for an epsilon jump), for counterfactual experience
+    (:mod:`mitlc.learn.learners.crm_env`)."""
+    env_reward: FloatArray | None = None
+    """The env's own reward of the step (``info["env_reward"]`` of wrapped envs)."""
+    env_ended: BoolArray | None = None
+    """Whether the env had ended by the end of the step (``info["env_ended"]``)."""
 
     @property
     def done(self) -> BoolArray:

@@ -12,7 +12,11 @@ best valid action)`` (0 after a terminal step; a truncated episode still bootstr
 horizon is not part of the state) under the Huber loss, with the gradient norm clipped; the
 target network copies the online one every ``target_update`` gradient steps. ``r`` and
 ``gamma`` are the learning signal of :func:`mitlc.learn.learners.base.learning_signal`
-(discount per transition, optional shaping), times ``reward_scale``.
+(discount per transition, optional shaping), times ``reward_scale``. With ``dqn.crm`` the
+memory also gets the counterfactual transitions of each world step (Toro Icarte et al., JAIR
+2022): every other product state it tells about on a finite product
+(:mod:`mitlc.learn.learners.crm`), every other task state on an env
+(:mod:`mitlc.learn.learners.crm_env`).
 """
 
 from __future__ import annotations
@@ -34,9 +38,11 @@ from mitlc.learn.learners.base import (
     epsilon_at,
     learning_signal,
     random_valid,
+    step_discounts,
     transition_signal,
 )
 from mitlc.learn.learners.crm import Batch, Counterfactuals
+from mitlc.learn.learners.crm_env import EnvCounterfactuals
 from mitlc.learn.learners.encoder import Encoder
 from mitlc.learn.learners.images import q_network
 from mitlc.learn.learners.nets import (
@@ -102,7 +108,7 @@ class DQNLearner(Learner):
         config: TrainConfig,
         rng: np.random.Generator,
         shaping: Shaping | None = None,
-        counterfactuals: Counterfactuals | None = None,
+        counterfactuals: Counterfactuals | EnvCounterfactuals | None = None,
         *,
         encoder: Encoder | None = None,
         num_actions: int | None = None,
@@ -112,9 +118,14 @@ class DQNLearner(Learner):
         (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
         self.tables, self.config, self.rng, self.shaping = tables, config, rng, shaping
+        if isinstance(counterfactuals, EnvCounterfactuals) and shaping is not None:
+            raise ValueError("counterfactual experience on an env does not know the shaping "
+                             "potential of other task states")  # fmt: skip
         self.counterfactuals = counterfactuals
         """With them (``dqn.crm``), every world step also stores the transitions of every
-        other automaton state and frontier it tells about (:mod:`mitlc.learn.learners.crm`)."""
+        other automaton state and frontier it tells about: of a finite product's tables
+        (:mod:`mitlc.learn.learners.crm`), or of a wrapped env's task
+        (:mod:`mitlc.learn.learners.crm_env`, without shaping)."""
         self.settings: DQNConfig = config.dqn
         s = self.settings
         self.num_envs = s.num_envs
@@ -192,7 +203,9 @@ class DQNLearner(Learner):
             "next_mask": step.next_mask,
             "next_valid": step.next_valid,
         }
-        if self.counterfactuals is not None:
+        if isinstance(self.counterfactuals, EnvCounterfactuals):
+            self.replay.add(self._env_entries(self.counterfactuals, entries, step))
+        elif self.counterfactuals is not None:
             tables = self.tables
             assert tables is not None, "counterfactuals come from a finite product"
             told = (actions < tables.num_world_actions) & (tables.world_state[step.next_state] >= 0)
@@ -228,6 +241,32 @@ class DQNLearner(Learner):
             "next_automaton": reached,
             "next_mask": batch.next_mask,
             "next_valid": tables.valid[batch.next_state],
+        }
+
+    def _env_entries(
+        self, crm: EnvCounterfactuals, entries: dict[str, Any], step: Step
+    ) -> dict[str, Any]:
+        """Replay entries of the counterfactuals of a wrapped env's step (``entries``: its
+        experienced ones): the same observations and actions, the task's part replaced."""
+        if step.letter is None or step.env_reward is None or step.env_ended is None:
+            raise ValueError("counterfactual experience needs the letters the episodes read")
+        told = crm.tells(step.letter, step.env_ended)
+        rows = crm.rows(entries["automaton"], entries["mask"], step.letter, step.env_reward,
+                        told, self.rng)  # fmt: skip
+        i = rows.source
+        gammas = step_discounts(rows.accepting, self.config.discount)
+        return {
+            "observation": entries["observation"][i],
+            "automaton": rows.q,
+            "mask": rows.frontier,
+            "action": entries["action"][i],
+            "reward": rows.reward * self.settings.reward_scale,
+            "gamma": gammas,
+            "terminated": rows.terminated,
+            "next_observation": entries["next_observation"][i],
+            "next_automaton": rows.next_q,
+            "next_mask": rows.next_frontier,
+            "next_valid": crm.valid(rows.next_q),
         }
 
     def _learn(self) -> None:

@@ -7,7 +7,9 @@ observation (its readable part, :func:`mitlc.gym.observations.readable`, through
 :meth:`mitlc.learn.learners.nets.Encoder.of_spaces`; images through a CNN,
 :mod:`mitlc.learn.learners.images`), or tabular Q-learning where the
 env's
-observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). The run
+observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). DQN
+takes counterfactual experience over the task's states (``dqn.crm``,
+:mod:`mitlc.learn.learners.crm_env`; not with shaping); tabular Q-learning does not yet. The run
 directory, metrics and checkpoints are those of every run (:mod:`mitlc.learn.run`). A
 checkpoint holds the learner, the tally and, for each env, the task monitor's state and, where
 the env has one (a continuous world's robot), the env's state, so a resumed run of a
@@ -41,8 +43,13 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             f"{config.algo} does not learn this world yet (it is not finite: "
             f"use --algo {', '.join(LEARNERS)})"
         )
-    if (config.algo == "dqn" and config.dqn.crm) or (config.algo == "q" and config.q.crm):
-        raise RunError("counterfactual experience needs a finite product: not here")
+    if config.algo == "q" and config.q.crm:
+        raise RunError("counterfactual experience with tabular Q-learning needs a finite "
+                       "product: not here (use --algo dqn with dqn.crm)")  # fmt: skip
+    crm = config.algo == "dqn" and config.dqn.crm
+    if crm and config.shaping:
+        raise RunError("counterfactual experience on an env takes no shaping yet (the "
+                       "potential of the other task states is not known here)")  # fmt: skip
     from mitlc.learn.learners.base import EnvShaping
     from mitlc.learn.learners.encoder import Encoder, task_features
 
@@ -83,6 +90,12 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             None, config, rng, shaping, encoder=encoder, num_actions=probe.num_actions,
             horizon=setting.world.horizon,
         )  # fmt: skip
+    from mitlc.learn.learners.crm_env import CounterfactualError, EnvCounterfactuals
     from mitlc.learn.learners.dqn import DQNLearner
 
-    return DQNLearner(None, config, rng, shaping, encoder=encoder, num_actions=probe.num_actions)
+    try:
+        counterfactuals = EnvCounterfactuals.of(probe.envs[0]) if crm else None
+    except CounterfactualError as err:
+        raise RunError(f"dqn.crm: {err}") from None
+    return DQNLearner(None, config, rng, shaping, counterfactuals, encoder=encoder,
+                      num_actions=probe.num_actions)  # fmt: skip

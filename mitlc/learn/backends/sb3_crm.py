@@ -1,0 +1,254 @@
+"""Counterfactual experience in the replay memory of SB3's off-policy learners (``sb3-dqn``,
+``sb3-sac``, ``sb3-td3`` with ``sb3.crm``; Toro Icarte, Klassen, Valenzano and McIlraith,
+"Reward Machines: Exploiting Reward Function Structure in Reinforcement Learning", JAIR 73,
+2022: CRM, which pycrm also feeds to SB3's replay).
+
+:class:`CounterfactualReplay` is SB3's ``ReplayBuffer`` (given as ``replay_buffer_class``,
+:func:`replay_settings`) that stores, beside each transition SB3 adds, its counterfactuals over
+the task's states (:mod:`mitlc.learn.learners.crm_env`: which task states, at most
+:data:`~mitlc.learn.learners.crm_env.LIMIT` a step, and the monitor's step over them). A
+counterfactual has the experienced observation and next observation (SB3's, with an ended
+episode's ``terminal_observation`` in its place) with their task part rebuilt by the wrapper's
+own layout (:meth:`mitlc.gym.parts.TaskObservation.observe`, :class:`FlatTask`), the same
+action, the monitor's reward (plus ``info["env_reward"]`` where the wrapper adds the env's),
+and ``done`` when the task is decided or, still pending, at the horizon (the experienced step's
+``info["step"]``); under SB3's ``handle_timeout_termination`` the latter is a timeout, from
+which SB3 bootstraps, as for the experienced transitions.
+
+**The task state a transition was taken in** is followed per env inside the buffer, by the
+monitor itself: every env starts at the monitor's start (SB3 resets its envs when learning
+starts, and an episode restarts there), a world step advances it by the letter read
+(``info["letter"]``), a jump sets the automaton state the info reports; each is checked against
+the info's ``automaton_state`` and ``step``, and an env whose run the buffer did not follow
+from its start (a buffer put in mid-episode) gives no counterfactuals until its next episode.
+
+**Skipped**: the transitions of :meth:`~mitlc.learn.learners.crm_env.EnvCounterfactuals.tells`
+(a jump or an invalid action, an env that has ended); shaping is refused (the potential of the
+other task states is not known here); SB3's ``optimize_memory_usage`` too (each stored
+transition needs its own next observation). SB3 stores transitions ``n_envs`` at a time (one
+row per env): counterfactuals wait in a queue until they fill a row, so up to ``n_envs - 1`` of
+them are stored one step late. The experienced transitions are stored as SB3 stores them;
+:attr:`CounterfactualReplay.counterfactual` marks the others.
+
+This module imports Stable-Baselines3: import it only where SB3 is installed.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from gymnasium import spaces
+from stable_baselines3.common.buffers import ReplayBuffer
+
+from mitlc.gym.parts import TaskObservation
+from mitlc.learn.config import TrainConfig
+from mitlc.learn.learners.crm_env import (
+    CounterfactualError,
+    EnvCounterfactuals,
+    Rows,
+    task_wrapper,
+)
+from mitlc.learn.rundir.files import RunError
+from mitlc.task import MonitorState
+from mitlc.worlds.model import BoolArray, IntArray
+
+Flat = npt.NDArray[np.float32]
+FIELDS = ("obs", "next_obs", "action", "reward", "done", "timeout")
+
+
+class FlatTask:
+    """A wrapped env's task as the buffer needs it: its counterfactuals and its flat
+    observation, whose task part (after the env's ``view.env_dim`` values) :meth:`observe`
+    replaces."""
+
+    def __init__(self, counterfactuals: EnvCounterfactuals, view: TaskObservation) -> None:
+        if not view.flatten:
+            raise CounterfactualError("sb3.crm needs the wrapper's flat observation")
+        self.counterfactuals, self.view = counterfactuals, view
+        space = copy.deepcopy(view.env_space)
+        space.seed(0)
+        self._reference = space.sample()
+        """An observation of the env, whose part :meth:`observe` does not keep."""
+        self._parts: dict[tuple[int, int], Flat] = {}
+
+    @staticmethod
+    def of(env: Any) -> FlatTask:
+        """The task of the :class:`mitlc.gym.TaskWrapper` ``env`` is or wraps, made with
+        ``flatten=True`` (its layout rebuilt from its own parts and checked against its
+        space)."""
+        wrapper = task_wrapper(env)
+        automaton = wrapper.automaton
+        view = TaskObservation.of(wrapper.env.observation_space, "env", wrapper.num_q,
+                                  automaton.num_sets, wrapper.flatten, wrapper.clocks)  # fmt: skip
+        if view.space != wrapper.observation_space:
+            raise CounterfactualError(
+                f"the wrapper's observation {wrapper.observation_space} is not the layout "
+                f"{view.space} of its parts"
+            )
+        return FlatTask(EnvCounterfactuals.of(wrapper), view)
+
+    def part(self, q: int, frontier: int) -> Flat:
+        """The task part of a flat observation in task state ``(q, frontier)``."""
+        found = self._parts.get((q, frontier))
+        if found is None:
+            whole = self.view.observe(self._reference, q, frontier)
+            found = self._parts[(q, frontier)] = np.asarray(whole[self.view.env_dim :])
+        return found
+
+    def observe(self, flat: Flat, q: IntArray, frontier: IntArray) -> Flat:
+        """Each row of ``flat`` with its task part that of ``(q[r], frontier[r])``."""
+        out = np.array(flat, dtype=np.float32, copy=True)
+        dim = self.view.env_dim
+        for r, (qr, fr) in enumerate(zip(q.tolist(), frontier.tolist(), strict=True)):
+            out[r, dim:] = self.part(qr, fr)
+        return out
+
+
+class CounterfactualReplay(ReplayBuffer):
+    """SB3's replay memory with the counterfactuals of every transition (see the module
+    docstring); ``task`` and ``seed`` (of the sample of counterfactuals above the bound) come
+    through ``replay_buffer_kwargs``."""
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space[Any],
+        action_space: spaces.Space[Any],
+        device: torch.device | str = "auto",
+        n_envs: int = 1,
+        optimize_memory_usage: bool = False,
+        handle_timeout_termination: bool = True,
+        *,
+        task: FlatTask,
+        seed: int = 0,
+    ) -> None:
+        if optimize_memory_usage:
+            raise CounterfactualError("sb3.crm: each transition needs its own next observation, "
+                                      "not SB3's optimize_memory_usage")  # fmt: skip
+        super().__init__(buffer_size, observation_space, action_space, device, n_envs,
+                         optimize_memory_usage, handle_timeout_termination)  # fmt: skip
+        self.task, self.rng = task, np.random.default_rng(seed)
+        self.counterfactual = np.zeros((self.buffer_size, self.n_envs), dtype=np.bool_)
+        """Which stored transitions are counterfactual."""
+        self.made = 0
+        """Counterfactual transitions made so far (stored, or waiting in the queue)."""
+        monitor = task.counterfactuals.monitor
+        self.runs: list[MonitorState | None] = [monitor.reset()] * self.n_envs
+        """The task state of each env's episode now (``None``: not followed)."""
+        self._queue: dict[str, npt.NDArray[Any]] = {}
+
+    def add(
+        self,
+        obs: npt.NDArray[Any],
+        next_obs: npt.NDArray[Any],
+        action: npt.NDArray[Any],
+        reward: npt.NDArray[Any],
+        done: npt.NDArray[Any],
+        infos: list[dict[str, Any]],
+    ) -> None:
+        """Store SB3's transitions, then their counterfactuals (by whole rows of
+        ``n_envs``)."""
+        made = self._counterfactuals(obs, next_obs, action, infos)
+        self._store(obs, next_obs, action, reward, done, infos, counterfactual=False)
+        self._follow(np.asarray(done, dtype=np.bool_), infos)
+        self.made += len(made["reward"])
+        queue = self._queue
+        self._queue = {k: np.concatenate([queue[k], made[k]]) for k in FIELDS} if queue else made
+        n = self.n_envs
+        while len(self._queue["reward"]) >= n:
+            row = {k: v[:n] for k, v in self._queue.items()}
+            self._queue = {k: v[n:] for k, v in self._queue.items()}
+            truncated = [{"TimeLimit.truncated": bool(t)} for t in row["timeout"]]
+            self._store(row["obs"], row["next_obs"], row["action"], row["reward"], row["done"],
+                        truncated, counterfactual=True)  # fmt: skip
+
+    def _store(
+        self,
+        obs: npt.NDArray[Any],
+        next_obs: npt.NDArray[Any],
+        action: npt.NDArray[Any],
+        reward: npt.NDArray[Any],
+        done: npt.NDArray[Any],
+        infos: list[dict[str, Any]],
+        *,
+        counterfactual: bool,
+    ) -> None:
+        self.counterfactual[self.pos] = counterfactual
+        super().add(obs, next_obs, action, reward, done, infos)
+
+    def _counterfactuals(
+        self,
+        obs: npt.NDArray[Any],
+        next_obs: npt.NDArray[Any],
+        action: npt.NDArray[Any],
+        infos: list[dict[str, Any]],
+    ) -> dict[str, npt.NDArray[Any]]:
+        """The counterfactual transitions of one vector step, as the fields of
+        :data:`FIELDS`."""
+        crm = self.task.counterfactuals
+        runs = self.runs
+        known = np.array([run is not None for run in runs], dtype=np.bool_)
+        q, frontier, rounds = (np.array([getattr(run, name, 0) for run in runs], dtype=np.int64)
+                               for name in ("q", "frontier", "rounds"))  # fmt: skip
+        letter = np.array([info.get("letter", -1) for info in infos], dtype=np.int64)
+        ended = np.array([info.get("env_ended", False) for info in infos], dtype=np.bool_)
+        env_reward = np.array([info.get("env_reward", 0.0) for info in infos], dtype=np.float64)
+        told: BoolArray = crm.tells(letter, ended) & known
+        rows: Rows = crm.rows(q, frontier, letter, env_reward, told, self.rng, rounds)
+        i = rows.source
+        steps = np.array([info.get("step", 0) for info in infos], dtype=np.int64)[i]
+        truncated = ~rows.terminated & (steps >= crm.horizon)
+        flat = np.asarray(obs).reshape(self.n_envs, -1)
+        after = np.asarray(next_obs).reshape(self.n_envs, -1)
+        return {
+            "obs": self.task.observe(flat[i], rows.q, rows.frontier),
+            "next_obs": self.task.observe(after[i], rows.next_q, rows.next_frontier),
+            "action": np.asarray(action).reshape(self.n_envs, self.action_dim)[i],
+            "reward": rows.reward.astype(np.float32),
+            "done": (rows.terminated | truncated).astype(np.float32),
+            "timeout": truncated,
+        }
+
+    def _follow(self, done: BoolArray, infos: list[dict[str, Any]]) -> None:
+        """Advance each env's task state by its step (see the module docstring)."""
+        monitor = self.task.counterfactuals.monitor
+        for i, info in enumerate(infos):
+            run = self.runs[i]
+            if done[i]:
+                self.runs[i] = monitor.reset()
+                continue
+            if run is None:
+                continue
+            letter = int(info.get("letter", -1))
+            q, steps = int(info.get("automaton_state", -1)), int(info.get("step", -1))
+            if letter >= 0:
+                after = monitor.step(run, letter).state
+            else:  # a jump (or an invalid action): the frontier stays
+                after = MonitorState(q, run.frontier, int(info.get("rounds", 0)), steps)
+            self.runs[i] = after if (after.q, after.steps) == (q, steps) else None
+
+
+def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
+    """SB3's ``replay_buffer_class`` and ``replay_buffer_kwargs`` for ``sb3.crm`` on ``env``
+    (the run's wrapped env; nothing without ``sb3.crm``); a :class:`RunError` where it cannot
+    be."""
+    if not config.sb3.crm:
+        return {}
+    from mitlc.learn.backends.sb3_offpolicy import OFF_POLICY
+
+    if config.algo not in OFF_POLICY:
+        raise RunError(f"sb3.crm: counterfactual experience goes into a replay memory: "
+                       f"{', '.join(OFF_POLICY)}, not {config.algo}")  # fmt: skip
+    if config.shaping:
+        raise RunError("sb3.crm takes no shaping yet (the potential of the other task states "
+                       "is not known here)")  # fmt: skip
+    try:
+        task = FlatTask.of(env)
+    except CounterfactualError as err:
+        raise RunError(f"sb3.crm: {err}") from None
+    kwargs = {"task": task, "seed": config.seed}
+    return {"replay_buffer_class": CounterfactualReplay, "replay_buffer_kwargs": kwargs}
