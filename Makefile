@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-sweep lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-envs bench-sweep lint golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -80,6 +80,13 @@ bench-bounded: $(STAMP)
 bench-sb3: $(STAMP)
 	$(BIN)/python bench/sb3_bench.py --episodes 9000 --set dqn.crm=true --set dqn.target_update=50
 	$(BIN)/python bench/sb3_bench.py --world specs/continuous/case1.yaml --episodes 10000 --set dqn.num_envs=32 --set dqn.target_update=25
+
+# Env worlds side by side (issue 24): plain SB3 (state one-hot, pass/fail reward) beside mitlc's
+# observation and shaping at the same env steps, 3 seeds each, on MiniGrid DoorKey, PointMaze,
+# the continuous cases 1 and 2 and the paper's case 2 (with mitlc's recurrent DQN), IQM across
+# tasks and the issue's targets (hours on a CPU; --steps-scale 0.1 for a quick look).
+bench-envs: $(STAMP)
+	$(BIN)/python bench/envs_bench.py --out build/bench-envs
 
 # Sweeps at scale (issue 14): 20 seeds of case 1 and 10 of case 3 one after another, on Ray on
 # this machine, and on a two-node Ray cluster started here (about 20 minutes).

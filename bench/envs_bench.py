@@ -1,0 +1,467 @@
+"""Plain SB3 beside mitlc's observation and shaping on env worlds (issue 24), over several seeds.
+
+    .venv/bin/python bench/envs_bench.py [--tasks doorkey,pointmaze,case1c,case2c,case2]
+        [--seeds 0,1,2] [--steps-scale 1] [--episodes N] [--out DIR] [--jobs 1] [--device D]
+
+Each task (:data:`TASKS`: a world file, an SB3 algorithm and its budget in env steps) is
+learned by two arms (:data:`ARMS`) at the same budget and seeds:
+
+* ``plain``: SB3 on the wrapper's flat digital observation with the pass/fail reward
+  (``--set task_obs=state --set shaping=0``, counterfactual experience off);
+* ``mitlc``: mitlc's observation and shaping (``--set task_obs=auto --set shaping=1``, and
+  ``sb3.crm=true`` / ``dqn.crm=true`` where the learner's section has a ``crm`` field and takes
+  it: SB3's off-policy algorithms, mitlc's DQN). A run whose ``crm`` the learner refuses (e.g.
+  not with shaping) is run again without it, and the table says so.
+
+The paper's case 2 has a third arm, ``mitlc-drqn``: mitlc's own recurrent DQN (``--algo drqn
+--episodes 30000 --set shaping=1``), timed against issue 24's 120 s.
+
+Every run goes through the command line into its own run directory under ``--out`` (``mitlc
+train --no-eval``, timed: the wall time is the ``train`` process's, start-up included; then
+``mitlc eval RUN --json --episodes N``, greedy success with its 95% interval). A run whose
+directory already has ``run/summary.json`` and ``result.json`` is not run again, so an
+interrupted bench goes on where it stopped. Printed: a Markdown table per task and arm (mean
+greedy success over the seeds, each seed's with its interval, env steps from ``summary.json``,
+mean wall time), rliable's IQM of the success across the tasks per arm with its 95%
+stratified bootstrap interval (:func:`mitlc.sweep.report.interval_estimates`), the
+probability that ``mitlc`` beats ``plain``, and the issue's targets (:data:`TARGETS`) with
+PASS/FAIL; all of it also in ``--out/results.json``.
+
+``--steps-scale`` multiplies every budget (env steps and the DRQN's episodes) for a quick
+look; the targets are then printed but say nothing about the issue. The full bench takes many
+hours on a CPU: measured on 2 cores, DoorKey's PPO trains about 400 env steps/s, PointMaze's
+SAC about 80, the recurrent PPO on case 2 about 60-100 (its short first runs), so a run of
+PointMaze is about an hour. ``--jobs`` runs several at once (torch's threads shared out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+MITLC = [sys.executable, "-m", "mitlc"]
+Records = dict[str, dict[str, list[dict[str, Any]]]]
+"""Finished runs' records by task and arm."""
+
+
+@dataclass(frozen=True)
+class Arm:
+    """How a task is learned: ``--set`` settings, whether counterfactual experience is asked for,
+    and, for an arm of its own learner, the algorithm and its budget in episodes."""
+
+    name: str
+    settings: tuple[str, ...]
+    crm: bool
+    algo: str | None = None
+    """None: the task's algorithm and env-step budget."""
+    episodes: int | None = None
+    """The budget of ``algo`` in episodes (``--episodes``) in place of the task's env steps."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """A world file, the SB3 algorithm both arms run and its budget (env steps, ``sb3.steps``)."""
+
+    name: str
+    world: str
+    algo: str
+    steps: int
+    settings: tuple[str, ...] = ()
+    """More ``--set`` settings of every arm on this task (besides the arm's own)."""
+    eval_episodes: int = 10_000
+    extra_arms: tuple[Arm, ...] = ()
+
+
+ARMS = (
+    Arm("plain", ("task_obs=state", "shaping=0"), crm=False),
+    Arm("mitlc", ("task_obs=auto", "shaping=1"), crm=True),
+)
+
+ENV_EVAL = 200
+"""Greedy evaluation episodes on env worlds (slow: a gymnasium env steps one at a time)."""
+
+TASKS = (
+    # 292 rollouts of 8 envs x 128 steps: PPO ends on a whole rollout, so 299,008 is the last
+    # one within the issue's 300,000 steps.
+    Task("doorkey", "specs/envs/minigrid-doorkey.yaml", "sb3-ppo", 299_008,
+         ("sb3.num_envs=8", "sb3.n_steps=128"), eval_episodes=ENV_EVAL),
+    Task("pointmaze", "specs/envs/pointmaze.yaml", "sb3-sac", 300_000, eval_episodes=ENV_EVAL),
+    Task("case1c", "specs/continuous/case1.yaml", "sb3-ppo", 150_000),
+    Task("case2c", "specs/continuous/case2.yaml", "sb3-recurrent-ppo", 150_000),
+    Task("case2", "specs/paper/case2.yaml", "sb3-recurrent-ppo", 150_000,
+         extra_arms=(Arm("mitlc-drqn", ("task_obs=auto", "shaping=1"), crm=True,
+                         algo="drqn", episodes=30_000),)),
+)  # fmt: skip
+
+CASE2_LOWER = 0.963648
+"""The best lower bound of case 2's optimum (``mitlc check specs/paper/case2.yaml``)."""
+
+
+@dataclass(frozen=True)
+class Target:
+    """Issue 24's target: mean greedy success over the seeds of ``arm`` on ``task`` at least
+    ``success``, every run within ``steps`` env steps and ``seconds`` of mean wall time."""
+
+    task: str
+    arm: str
+    success: float
+    text: str
+    steps: int | None = None
+    seconds: float | None = None
+
+
+TARGETS = (
+    Target("doorkey", "mitlc", 0.9, "DoorKey-5x5 >= 0.9 within 300,000 steps", steps=300_000),
+    Target("pointmaze", "mitlc", 0.9, "PointMaze_UMaze >= 0.9 within 300,000 steps",
+           steps=300_000),
+    Target("case2", "mitlc-drqn", 0.95 * CASE2_LOWER,
+           f"case 2 POMDP >= 0.95 x {CASE2_LOWER} = {0.95 * CASE2_LOWER:.4f} in under 120 s",
+           seconds=120.0),
+)  # fmt: skip
+
+
+def crm_section(algo: str) -> str | None:
+    """The settings section whose ``crm`` field ``algo`` reads, where it has one and the
+    learner takes it (SB3's counterfactual experience goes into a replay memory: its
+    off-policy algorithms only); None otherwise. Read from the config classes, so the bench
+    works before and after a learner gains the field."""
+    from mitlc.learn.backends.sb3_offpolicy import OFF_POLICY
+    from mitlc.learn.config import TrainConfig
+
+    if algo.startswith("sb3-") and algo not in OFF_POLICY:
+        return None
+    section = "sb3" if algo.startswith("sb3-") else algo
+    config = getattr(TrainConfig(), section, None)
+    if config is None or "crm" not in {f.name for f in dataclasses.fields(config)}:
+        return None
+    return section
+
+
+@dataclass
+class Run:
+    """One (task, arm, seed) and where it lives: ``DIR/run`` is the run directory,
+    ``DIR/train.json`` the timed train process, ``DIR/result.json`` the finished record."""
+
+    task: Task
+    arm: Arm
+    seed: int
+    directory: Path
+    result: dict[str, Any] | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        return f"{self.task.name} {self.arm.name} s{self.seed}"
+
+
+def plan(tasks: list[Task], seeds: list[int], out: Path) -> list[Run]:
+    runs = []
+    for task in tasks:
+        for arm in (*ARMS, *task.extra_arms):
+            for seed in seeds:
+                runs.append(Run(task, arm, seed, out / task.name / arm.name / f"s{seed}"))
+    return runs
+
+
+def command(run: Run, scale: float, device: str | None, crm: bool) -> list[str]:
+    """The ``mitlc train`` command of ``run`` (budgets times ``scale``)."""
+    algo = run.arm.algo or run.task.algo
+    line = [*MITLC, "train", run.task.world, "--algo", algo, "--seed", str(run.seed)]
+    line += ["--out", str(run.directory / "run"), "--quiet", "--no-eval"]
+    if run.arm.episodes is not None:
+        line += ["--episodes", str(max(1, round(run.arm.episodes * scale)))]
+    else:
+        line += ["--set", f"sb3.steps={max(1, round(run.task.steps * scale))}"]
+    for setting in (*run.task.settings, *run.arm.settings):
+        line += ["--set", setting]
+    section = crm_section(algo)
+    if section is not None:  # the plain arm turns it off, whatever the world file says
+        line += ["--set", f"{section}.crm={'true' if crm else 'false'}"]
+    if device is not None:
+        line += ["--device", device]
+    return line
+
+
+def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]:
+    """Train ``run`` afresh (a run directory left without ``summary.json`` is removed); the
+    train process's seconds and its command. A ``crm`` the learner refuses is dropped."""
+    import shutil
+
+    crm = run.arm.crm
+    while True:
+        shutil.rmtree(run.directory / "run", ignore_errors=True)
+        run.directory.mkdir(parents=True, exist_ok=True)
+        line = command(run, scale, device, crm)
+        start = time.perf_counter()
+        done = subprocess.run(line, cwd=ROOT, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+        log = f"$ {' '.join(line)}\n{done.stdout}{done.stderr}"
+        (run.directory / "train.log").write_text(log, encoding="utf-8")
+        last = done.stderr.strip().splitlines()[-1] if done.stderr.strip() else ""
+        refused = done.returncode != 0 and "Traceback" not in done.stderr and "crm" in last
+        if refused and crm:  # a setting refused (mitlc's one-line error), not a crash
+            reason = last
+            run.notes.append(f"crm refused, run without it ({reason})")
+            crm = False
+            continue
+        if done.returncode != 0:
+            tail = "\n".join(done.stderr.strip().splitlines()[-5:])
+            raise RuntimeError(f"mitlc train failed (exit {done.returncode}):\n{tail}")
+        return seconds, line
+
+
+def evaluate(run: Run, episodes: int) -> dict[str, Any]:
+    """``mitlc eval RUN --json --episodes N``."""
+    line = [*MITLC, "eval", str(run.directory / "run"), "--json", "--episodes", str(episodes)]
+    done = subprocess.run(line, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0:
+        tail = "\n".join(done.stderr.strip().splitlines()[-5:])
+        raise RuntimeError(f"mitlc eval failed (exit {done.returncode}):\n{tail}")
+    report: dict[str, Any] = json.loads(done.stdout)
+    return report
+
+
+def finished(run: Run) -> dict[str, Any] | None:
+    """The record of a run already done (``run/summary.json`` and ``result.json``), else None."""
+    summary, result = run.directory / "run" / "summary.json", run.directory / "result.json"
+    if summary.is_file() and result.is_file():
+        record: dict[str, Any] = json.loads(result.read_text(encoding="utf-8"))
+        return record
+    return None
+
+
+_say = threading.Lock()
+
+
+def say(text: str) -> None:
+    with _say:
+        print(text, file=sys.stderr, flush=True)
+
+
+def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
+    """Train and evaluate ``run`` unless it is done; its record in ``run.result``."""
+    where = f"[{index}/{total}] {run.label}"
+    done = finished(run)
+    if done is not None:
+        run.result = done
+        say(f"{where}: done before, kept ({done['success_rate']:.3f})")
+        return
+    episodes = args.episodes if args.episodes is not None else run.task.eval_episodes
+    say(f"{where}: start ({run.arm.algo or run.task.algo})")
+    try:
+        timed = run.directory / "train.json"
+        if (run.directory / "run" / "summary.json").is_file() and timed.is_file():
+            trained = json.loads(timed.read_text(encoding="utf-8"))  # trained, not evaluated
+            run.notes = list(trained["notes"])
+        else:
+            seconds, line = train(run, args.steps_scale, args.device)
+            trained = {"wall_s": seconds, "command": line, "notes": run.notes}
+            timed.write_text(json.dumps(trained, indent=2), encoding="utf-8")
+        summary = json.loads((run.directory / "run" / "summary.json").read_text())
+        report = evaluate(run, episodes)
+    except RuntimeError as err:
+        say(f"{where}: FAILED ({err}); log in {run.directory / 'train.log'}")
+        return
+    run.result = {
+        "task": run.task.name,
+        "arm": run.arm.name,
+        "algo": run.arm.algo or run.task.algo,
+        "seed": run.seed,
+        "success_rate": float(report["success_rate"]),
+        "interval95": [float(x) for x in report["interval95"]],
+        "eval_episodes": int(report["episodes"]),
+        "steps": int(summary["steps"]),
+        "episodes": int(summary["episodes"]),
+        "wall_s": float(trained["wall_s"]),
+        "train_s": float(summary["seconds"]),
+        "command": trained["command"],
+        "notes": trained["notes"],
+        "lower": report.get("lower"),
+    }
+    (run.directory / "result.json").write_text(json.dumps(run.result, indent=2), encoding="utf-8")
+    low, high = run.result["interval95"]
+    say(
+        f"{where}: end, success {run.result['success_rate']:.3f} [{low:.3f}, {high:.3f}], "
+        f"{run.result['steps']:,} steps, {run.result['wall_s']:.1f} s"
+    )
+
+
+def per_arm(runs: list[Run]) -> Records:
+    """The finished records by task and arm, in the order of the plan."""
+    table: Records = {}
+    for run in runs:
+        arms = table.setdefault(run.task.name, {})
+        records = arms.setdefault(run.arm.name, [])
+        if run.result is not None:
+            records.append(run.result)
+    return table
+
+
+def markdown(table: Records, seeds: int) -> list[str]:
+    lines = [
+        "| task | arm | algo | success (mean) | each seed: success [95%] | env steps | wall s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for task, arms in table.items():
+        for arm, records in arms.items():
+            if not records:
+                lines.append(f"| {task} | {arm} | - | failed | - | - | - |")
+                continue
+            mean = np.mean([r["success_rate"] for r in records])
+            each = "; ".join(
+                f"s{r['seed']} {r['success_rate']:.3f} [{r['interval95'][0]:.3f}, "
+                f"{r['interval95'][1]:.3f}]"
+                for r in records
+            )
+            if len(records) < seeds:
+                each += f" ({seeds - len(records)} failed)"
+            steps = np.mean([r["steps"] for r in records])
+            wall = np.mean([r["wall_s"] for r in records])
+            algo = records[0]["algo"]
+            lines.append(
+                f"| {task} | {arm} | {algo} | {mean:.3f} | {each} | {steps:,.0f} | {wall:.1f} |"
+            )
+    return lines
+
+
+def aggregate(table: Records, reps: int) -> tuple[dict[str, Any], list[float] | None]:
+    """Per arm of :data:`ARMS`: rliable's IQM of the success (seeds x tasks, over the seeds
+    every task has) with its 95% stratified bootstrap interval, and the other statistics of
+    :func:`mitlc.sweep.report.interval_estimates`; and P(mitlc > plain) with its interval."""
+    from mitlc.sweep.report import improvement, interval_estimates
+
+    scores: dict[str, np.ndarray[Any, Any]] = {}
+    for arm in ARMS:
+        by_task = {t: {r["seed"]: r["success_rate"] for r in a.get(arm.name, [])}
+                   for t, a in table.items()}  # fmt: skip
+        seeds = sorted(set.intersection(*(set(s) for s in by_task.values())))
+        if seeds:
+            scores[arm.name] = np.array([[by_task[t][s] for t in by_task] for s in seeds])
+    estimates = interval_estimates(scores, reps=reps, seed=0) if scores else {}
+    result = {
+        name: {"seeds": int(scores[name].shape[0]), "tasks": list(table), **estimates[name]}
+        for name in scores
+    }
+    both = [scores.get(arm.name) for arm in ARMS]
+    pair = None
+    if both[0] is not None and both[1] is not None and both[0].shape == both[1].shape:
+        pair = improvement(both[1], both[0], reps=reps, seed=0)
+    return result, pair
+
+
+def targets(table: Records, seeds: int) -> list[dict[str, Any]]:
+    """Each target of :data:`TARGETS` whose task ran: the figures and whether it is met."""
+    found = []
+    for target in TARGETS:
+        records = table.get(target.task, {}).get(target.arm)
+        if records is None:
+            continue
+        row: dict[str, Any] = {"target": target.text, "task": target.task, "arm": target.arm}
+        if len(records) < seeds or not records:
+            row.update(met=False, why=f"{seeds - len(records)} of {seeds} runs failed")
+            found.append(row)
+            continue
+        success = float(np.mean([r["success_rate"] for r in records]))
+        steps = max(r["steps"] for r in records)
+        wall = float(np.mean([r["wall_s"] for r in records]))
+        met = success >= target.success
+        met &= target.steps is None or steps <= target.steps
+        met &= target.seconds is None or wall <= target.seconds
+        row.update(success=success, max_steps=steps, mean_wall_s=wall, met=bool(met))
+        found.append(row)
+    return found
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    names = [task.name for task in TASKS]
+    parser.add_argument("--tasks", default=",".join(names), help=f"of {', '.join(names)}")
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--steps-scale", type=float, default=1.0, help="times every budget")
+    parser.add_argument("--episodes", type=int, default=None,
+                        help=f"greedy eval episodes (default: {ENV_EVAL} on env worlds, "
+                             "10,000 on the others)")  # fmt: skip
+    parser.add_argument("--out", type=Path, default=None, help="default: a new temp dir")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at once")
+    parser.add_argument("--device", default=None, help="mitlc train --device (default: auto)")
+    parser.add_argument("--reps", type=int, default=2000, help="bootstrap resamples")
+    args = parser.parse_args()
+    chosen = [name.strip() for name in args.tasks.split(",") if name.strip()]
+    unknown = [name for name in chosen if name not in names]
+    if unknown or not chosen:
+        parser.error(f"--tasks: unknown {', '.join(unknown)} (of {', '.join(names)})")
+    seeds = [int(seed) for seed in args.seeds.split(",") if seed.strip()]
+    if args.steps_scale <= 0 or args.jobs < 1 or not seeds:
+        parser.error("--steps-scale and --jobs must be positive, --seeds not empty")
+    out = args.out or Path(tempfile.mkdtemp(prefix="envs-bench-"))
+    out.mkdir(parents=True, exist_ok=True)
+    if args.jobs > 1 and "OMP_NUM_THREADS" not in os.environ:  # torch's threads, shared out
+        os.environ["OMP_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // args.jobs))
+    tasks = [task for task in TASKS if task.name in chosen]
+    runs = plan(tasks, seeds, out)
+    say(f"envs bench: {len(runs)} runs under {out}")
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        futures = [pool.submit(execute, run, i + 1, len(runs), args) for i, run in enumerate(runs)]
+        for future in futures:
+            future.result()
+
+    table = per_arm(runs)
+    scale = "" if args.steps_scale == 1 else f", budgets x {args.steps_scale:g}"
+    print(f"envs bench: seeds {','.join(map(str, seeds))}{scale}; greedy success from "
+          f"mitlc eval --json; wall s is the train process's (jobs {args.jobs})\n")  # fmt: skip
+    for line in markdown(table, len(seeds)):
+        print(line)
+    for run in runs:
+        for note in run.result["notes"] if run.result else []:
+            print(f"note: {run.label}: {note}")
+    iqm, pair = aggregate(table, args.reps)
+    print(f"\nIQM of the greedy success across {', '.join(table)} (95% stratified bootstrap):")
+    for name, stats in iqm.items():
+        point, low, high = stats["iqm"]
+        print(f"  {name:6} {point:.3f} [{low:.3f}, {high:.3f}]  ({stats['seeds']} seeds)")
+    if pair is not None:
+        print(f"  P(mitlc > plain) {pair[0]:.3f} [{pair[1]:.3f}, {pair[2]:.3f}]")
+    checked = targets(table, len(seeds))
+    if checked:
+        print("\nissue 24's targets" + (" (scaled budgets: not the issue's)" if scale else ""))
+    for row in checked:
+        verdict = "PASS" if row["met"] else "FAIL"
+        if "why" in row:
+            print(f"  {verdict} {row['target']}: {row['why']}")
+            continue
+        print(
+            f"  {verdict} {row['target']}: {row['arm']} {row['success']:.3f} mean success, "
+            f"{row['max_steps']:,} steps at most, {row['mean_wall_s']:.1f} s mean wall"
+        )
+    results = {
+        "seeds": seeds,
+        "steps_scale": args.steps_scale,
+        "jobs": args.jobs,
+        "eval_episodes": args.episodes,
+        "tasks": {t.name: dataclasses.asdict(t) for t in tasks},
+        "runs": [run.result for run in runs if run.result is not None],
+        "failed": [run.label for run in runs if run.result is None],
+        "iqm": iqm,
+        "p_mitlc_over_plain": pair,
+        "targets": checked,
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
+    print(f"\nwritten: {out / 'results.json'}")
+
+
+if __name__ == "__main__":
+    main()
