@@ -116,6 +116,28 @@ def test_resume_equals_uninterrupted_run(world: Path, algo: str, tmp_path: Path)
 
 
 @pytest.mark.parametrize(("world", "algo"), [(CASE1, "dqn"), (CASE3, "drqn")], ids=label)
+def test_the_device_may_change_on_resume_and_a_run_reads_back_anywhere(
+    world: Path, algo: str, tmp_path: Path
+) -> None:
+    """A run resumed with another device (auto here, cpu before) ends as the uninterrupted
+    one; a run whose config.json says cuda is read back on this CPU machine (eval, plot)."""
+    config = tiny(algo, 60)
+    whole = train(world, config, tmp_path / "whole")
+    calls = iter(range(10**6))
+    cpu = dataclasses.replace(config, device="cpu")
+    stopped = train(world, cpu, tmp_path / "cut", should_stop=lambda: next(calls) >= 120)
+    assert stopped.stopped
+    resumed = train(world, config, tmp_path / "cut", resume=True)
+    assert (resumed.episodes, resumed.steps) == (whole.episodes, whole.steps)
+    assert same_weights(weights(tmp_path / "cut"), weights(tmp_path / "whole"))
+    saved = json.loads((tmp_path / "cut" / "config.json").read_text())
+    saved["train"]["device"] = "cuda"
+    (tmp_path / "cut" / "config.json").write_text(json.dumps(saved))
+    _, learner = load_learner(tmp_path / "cut")
+    assert isinstance(learner, DQNLearner | DRQNLearner) and learner.device.type == "cpu"
+
+
+@pytest.mark.parametrize(("world", "algo"), [(CASE1, "dqn"), (CASE3, "drqn")], ids=label)
 def test_state_dict_round_trip(world: Path, algo: str) -> None:
     config = tiny(algo, 10)
     setting, first = learner_of(world, config, seed=1)

@@ -124,6 +124,8 @@ def load_learner(directory: Path, *, deadline: Deadline | None = None) -> tuple[
         from mitlc.learn.backends import sb3_policy
 
         return setting, sb3_policy.load_learner(directory, setting)
+    # wherever it trained, a run is read back on the device this machine has
+    setting = replace(setting, config=replace(setting.config, device="auto"))
     _, learner_rng = _rngs(setting.config.seed)
     learner, env = _build(directory / CONFIG, setting, learner_rng, np.random.default_rng(0))
     _restore(directory, learner, env, Tally())
@@ -167,10 +169,11 @@ def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> None:
             raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
         return
     data, saved = read_config(directory)
-    if replace(saved, episodes=setting.config.episodes) != setting.config:
+    config = setting.config
+    if replace(saved, episodes=config.episodes, device=config.device) != config:
         raise RunError(
             f"{directory}: --resume with settings other than the run's own (only "
-            "--episodes may change)"
+            "--episodes may change, and the device)"
         )
     if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != spec:
         raise RunError(f"{directory}: --resume with another world or task than the run's")

@@ -28,6 +28,7 @@ import numpy as np
 import torch
 
 from mitlc.learn.config import DQNConfig, TrainConfig
+from mitlc.learn.device import resolve_device
 from mitlc.learn.envs.vec import Step, Tables
 from mitlc.learn.learners.base import (
     Episodes,
@@ -135,9 +136,10 @@ class DQNLearner(Learner):
         if encoder is None or num_actions is None:
             raise ValueError("a learner of any env needs the encoder and number of its actions")
         self.encoder, self.num_actions = encoder, num_actions
+        self.device = encoder.device = resolve_device(config.device)
         self.net: torch.nn.Sequential = build(
             torch_seed(rng), lambda: q_network(self.encoder, s.hidden, s.layers, self.num_actions)
-        )
+        ).to(self.device)
         if s.initial_value:
             optimistic(self.net[-1], s.initial_value * s.reward_scale)
         self.target = copy.deepcopy(self.net)
@@ -276,7 +278,7 @@ class DQNLearner(Learner):
         inputs = self.encoder(batch["observation"], batch["automaton"], batch["mask"])
         after = self.encoder(batch["next_observation"], batch["next_automaton"], batch["next_mask"])
         action, reward, gamma, terminated, next_valid = tensors(
-            batch, "action", "reward", "gamma", "terminated", "next_valid"
+            batch, "action", "reward", "gamma", "terminated", "next_valid", device=self.device
         )
         with torch.no_grad():
             online_next = self.net(after) if s.double else None

@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from mitlc.learn.config import DRQNConfig, TrainConfig
+from mitlc.learn.device import resolve_device
 from mitlc.learn.envs.vec import Step, Tables
 from mitlc.learn.learners.base import (
     Episodes,
@@ -169,7 +170,7 @@ class DRQNPolicy(Policy):
 
     def reset(self, num_envs: int) -> None:
         """Fresh episodes: zero states, no previous action."""
-        self.state = torch.zeros(num_envs, self.net.state_size)
+        self.state = torch.zeros(num_envs, self.net.state_size, device=self.encoder.device)
         self.previous = np.full(num_envs, -1, dtype=np.int64)
 
     def act(self, env: Episodes) -> IntArray:
@@ -184,7 +185,7 @@ class DRQNPolicy(Policy):
 
     def observe(self, step: Step) -> None:
         """Episodes that ended start over."""
-        done = torch.from_numpy(step.done)
+        done = torch.from_numpy(step.done).to(self.state.device)
         self.state = torch.where(done[:, None], torch.zeros_like(self.state), self.state)
         self.previous = np.where(step.done, -1, self.previous)
 
@@ -217,12 +218,13 @@ class DRQNLearner(Learner):
             raise ValueError("a learner of any env needs its encoder, actions and horizon")
         self.num_envs, num_a = s.num_envs, num_actions
         self.encoder = encoder
+        self.device = encoder.device = resolve_device(config.device)
         self.net: Recurrent = build(
             torch_seed(rng),
             lambda: Recurrent(
                 self.encoder.size, s.hidden, num_a, s.cell, image_features(self.encoder)
             ),
-        )
+        ).to(self.device)
         if s.initial_value:
             optimistic(self.net.head, s.initial_value * s.reward_scale)
         self.target = copy.deepcopy(self.net)
@@ -249,7 +251,7 @@ class DRQNLearner(Learner):
         self.streams = Streams(
             s.num_envs, 4 * horizon + 4, num_a, size, self.encoder.observation_field
         )
-        self.state = torch.zeros(s.num_envs, size)
+        self.state = torch.zeros(s.num_envs, size, device=self.device)
         self.previous = np.full(s.num_envs, -1, dtype=np.int64)
         self.vector_steps = self.gradient_steps = 0
         self._epsilon = s.epsilon_start
@@ -267,7 +269,7 @@ class DRQNLearner(Learner):
         anneal(self.optimizer, s.lr, s.lr_end_ratio, fraction)
         automaton = env.automaton
         seen = {"observation": env.observation, "automaton": automaton, "mask": env.mask}
-        self.streams.write(0, **seen, previous=self.previous, state=self.state.numpy())
+        self.streams.write(0, **seen, previous=self.previous, state=self.state.cpu().numpy())
         x = self.encoder(env.observation, automaton, env.mask, self.previous)
         with torch.no_grad():
             values, after = self.net(x[:, None], self.state)
@@ -308,7 +310,7 @@ class DRQNLearner(Learner):
             automaton=step.next_automaton,
             mask=step.next_mask,
             previous=actions,
-            state=after.numpy(),
+            state=after.cpu().numpy(),
         )
         streams.length += 1
         done = step.done
@@ -316,7 +318,8 @@ class DRQNLearner(Learner):
         if emit.any():
             self.replay.add(streams.cut(emit, s.burn_in, s.sequence_length))
         streams.length[done] = 0
-        self.state = torch.where(torch.from_numpy(done)[:, None], torch.zeros_like(after), after)
+        ended = torch.from_numpy(done).to(self.device)
+        self.state = torch.where(ended[:, None], torch.zeros_like(after), after)
         self.previous = np.where(done, -1, actions)
 
     def _learn(self) -> None:
@@ -325,8 +328,9 @@ class DRQNLearner(Learner):
         batch = self.replay.sample(self.rng, s.batch_size)
         x = self.encoder(batch["observation"], batch["automaton"], batch["mask"], batch["previous"])
         state, burn, action, reward, gamma, terminated, next_valid, live = tensors(
-            batch, "state", "burn", "action", "reward", "gamma", "terminated", "next_valid", "live"
-        )
+            batch, "state", "burn", "action", "reward", "gamma", "terminated", "next_valid", "live",
+            device=self.device,
+        )  # fmt: skip
         head, rest = x[:, : s.burn_in], x[:, s.burn_in :]
         with torch.no_grad():
             online_state = self.net.burn(head, state, burn)
@@ -364,7 +368,7 @@ class DRQNLearner(Learner):
         load_deep_state(self, saved)
         self.streams.data = {k: np.array(v) for k, v in saved["streams"].items()}
         self.streams.length = np.array(saved["length"])
-        self.state = saved["state"].clone()
+        self.state = saved["state"].clone().to(self.device)
         self.previous = np.array(saved["previous"])
 
     def policy(self) -> DRQNPolicy:

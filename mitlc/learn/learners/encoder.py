@@ -97,6 +97,8 @@ class Encoder:
         encoder.images, encoder.image_scale = tuple(images), 1.0 if scaled else 1.0 / 255
         return encoder
 
+    device = torch.device("cpu")
+    """Where the features go: the learner's device."""
     tiles = 0
     box_width = 0
     images: tuple[ImagePart, ...] = ()
@@ -172,7 +174,7 @@ class Encoder:
         if self.previous_action:
             assert previous is not None, "this encoder needs the previous action"
             x[rows, self.action_offset + 1 + np.ravel(previous)] = 1.0
-        return torch.from_numpy(x.reshape(*shape, self.size))
+        return torch.from_numpy(x.reshape(*shape, self.size)).to(self.device)
 
 
 def task_features(automaton: DigitalAutomaton, task_obs: str) -> FloatArray | None:

@@ -73,8 +73,9 @@ def masked(values: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
 
 
 def greedy(values: torch.Tensor, valid: BoolArray) -> IntArray:
-    """The best valid action of each row of ``values``."""
-    best: IntArray = masked(values, torch.from_numpy(valid)).argmax(dim=-1).numpy()
+    """The best valid action of each row of ``values`` (on any device)."""
+    mask = torch.from_numpy(valid).to(values.device)
+    best: IntArray = masked(values, mask).argmax(dim=-1).cpu().numpy()
     return best.astype(np.int64)
 
 
@@ -173,9 +174,14 @@ class Ring:
             self.data[name][:size] = values
 
 
-def tensors(batch: dict[str, np.ndarray[Any, Any]], *names: str) -> list[torch.Tensor]:
-    """The named arrays of ``batch`` as tensors."""
-    return [torch.from_numpy(np.ascontiguousarray(batch[name])) for name in names]
+CPU = torch.device("cpu")
+
+
+def tensors(
+    batch: dict[str, np.ndarray[Any, Any]], *names: str, device: torch.device = CPU
+) -> list[torch.Tensor]:
+    """The named arrays of ``batch`` as tensors on ``device``."""
+    return [torch.from_numpy(np.ascontiguousarray(batch[name])).to(device) for name in names]
 
 
 class DeepLearner(Protocol):
