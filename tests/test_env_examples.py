@@ -19,7 +19,7 @@ ENVS = ROOT / "specs" / "envs"
 EXAMPLES = {
     # file: (the package it imports, settings for a tiny run, eval episodes)
     "cliffwalking.yaml": (None, ["q.episodes=300"], 200),
-    "minigrid-doorkey.yaml": ("minigrid", ["dqn.episodes=3", "dqn.warmup_steps=64"], 3),
+    "minigrid-doorkey.yaml": ("minigrid", ["sb3.steps=256", "sb3.n_steps=32"], 3),
     "highway.yaml": ("highway_env", ["dqn.episodes=2", "dqn.warmup_steps=16"], 2),
     "pointmaze.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
 }
