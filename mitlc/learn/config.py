@@ -274,7 +274,7 @@ class TrainConfig:
     """What the deep learners and the SB3 backends see of the task: ``state``, a one-hot of the
     digital automaton's state; ``clocks``, the T-LDGBA's location (one-hot) and its clocks
     scaled by their bounds (:mod:`mitlc.automata.clocks`); ``auto``, the clocks where the
-    automaton has more than 64 states and its folding has clocks, else the state
+    automaton has more than 1,000 states and its folding has clocks, else the state
     (:func:`mitlc.automata.clocks.clocks_shown`). (Tabular Q-learning reads product
     states.)"""
     q: QConfig = field(default_factory=QConfig)
