@@ -8,7 +8,7 @@ learned by two arms (:data:`ARMS`) at the same budget and seeds:
 
 * ``plain``: SB3 on the wrapper's flat digital observation with the pass/fail reward
   (``--set task_obs=state --set shaping=0``, counterfactual experience off);
-* ``mitlc``: mitlc's observation and shaping (``--set task_obs=auto --set shaping=1``, and
+* ``mitlc``: mitlc's observation and shaping (``--set task_obs=clocks --set shaping=1``, and
   ``sb3.crm=true`` / ``dqn.crm=true`` where the learner's section has a ``crm`` field and takes
   it: SB3's off-policy algorithms, mitlc's DQN). A run whose ``crm`` the learner refuses (e.g.
   not with shaping) is run again without it, and the table says so.
@@ -88,7 +88,7 @@ class Task:
 
 ARMS = (
     Arm("plain", ("task_obs=state", "shaping=0"), crm=False),
-    Arm("mitlc", ("task_obs=auto", "shaping=1"), crm=True),
+    Arm("mitlc", ("task_obs=clocks", "shaping=1"), crm=True),
 )
 
 ENV_EVAL = 200
