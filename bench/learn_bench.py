@@ -47,6 +47,7 @@ ROWS = [
     Row("case1-cost-q", "case1-cost.yaml", {}, 0.98),
     Row("case1-dqn", "case1.yaml", {"algo": "dqn"}, 0.95),
     Row("case2-drqn", "case2.yaml", {"algo": "drqn"}, 0.95, 0.90),
+    Row("case2-q", "case2.yaml", {"algo": "q", "episodes": 200_000}, 0.95, 0.90),
     Row("case3-drqn", "case3-office.yaml", {"algo": "drqn"}, 0.95),
 ]
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.envs.envvec import VectorTask
+from mitlc.learn.envs.vec import Tables
 from mitlc.learn.envs.vector import ProductVectorEnv
 from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.base import Learner, ProductShaping, product_potential
@@ -63,6 +64,7 @@ from mitlc.learn.setting import (
     task_vector_of,
 )
 from mitlc.limits import Deadline
+from mitlc.worlds.model import FloatArray
 
 CHECKPOINT = checkpoint.INDEX
 ROWS, UNCHECKED = ("learner.replay.data",), ("learner.optimizer.state",)
@@ -84,10 +86,12 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         else None
     )
     shaping = ProductShaping(phi) if phi is not None else None
+    if world.is_pomdp and config.algo == "q":
+        return _observed_q(setting, table, phi, rng)
     if world.is_pomdp and config.algo != "drqn":
         raise RunError(
             f"{config.algo} learns on the true cell, which a POMDP's agent does not see: use "
-            "drqn on this world"
+            "drqn or q on this world"
         )
     if config.algo == "q":
         from mitlc.learn.learners.crm import Counterfactuals
@@ -109,6 +113,22 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
 
     encoder = Encoder(table, config.drqn.previous_action, task_features=task)
     return DRQNLearner(table, config, rng, shaping, encoder=encoder)
+
+
+def _observed_q(
+    setting: Setting, table: Tables, phi: FloatArray | None, rng: np.random.Generator
+) -> Learner:
+    """Tabular Q-learning on a finite POMDP over what its agent sees: the observation, the
+    automaton state and the frontier (:mod:`mitlc.learn.learners.qlearning_env`)."""
+    from mitlc.learn.learners.qlearning_env import ObservedQLearner
+
+    if setting.config.q.crm:
+        raise RunError("q.crm on a POMDP: counterfactuals need the true cell, which q does "
+                       "not see there; set q.crm=false")  # fmt: skip
+    return ObservedQLearner(
+        table.num_observations, table.num_automaton_states, table.num_sets, table.num_actions,
+        setting.config, rng, phi,
+    )  # fmt: skip
 
 
 def _rngs(seed: int) -> tuple[np.random.Generator, np.random.Generator]:

@@ -102,11 +102,20 @@ class QLearner(Learner):
         self._update(batch, alpha, self._values(batch.next_mask, batch.next_state))
         return step
 
-    def _update(self, batch: Batch, alpha: float, after: FloatArray) -> None:
+    def _update(
+        self,
+        batch: Batch,
+        alpha: float,
+        after: FloatArray,
+        states: tuple[IntArray, IntArray] | None = None,
+    ) -> None:
         """Move each (mask, state, action) of ``batch`` toward the mean of its targets
-        ``r + gamma * max_a' Q(next)`` (``after``; 0 after a terminal step)."""
+        ``r + gamma * max_a' Q(next)`` (``after``; 0 after a terminal step). ``states``: the
+        product states before and after, which the shaping reads, where the table's rows are
+        not product states."""
+        before, reached = (batch.state, batch.next_state) if states is None else states
         reward, gammas = transition_signal(
-            batch.reward, batch.accepting, batch.state, batch.next_state, self.config, self.phi
+            batch.reward, batch.accepting, before, reached, self.config, self.phi
         )
         best = np.where(batch.terminated, 0.0, after)
         flat = np.ravel_multi_index((batch.mask, batch.state, batch.action), self.q_table.shape)

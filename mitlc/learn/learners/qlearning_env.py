@@ -1,8 +1,12 @@
-"""Tabular Q-learning on any wrapped env with a discrete observation
-(:class:`mitlc.learn.envs.envvec.VectorTask`): the table is indexed by ``(frontier, observation,
-automaton state)`` in place of the product's states, and the valid actions are the wrapper's
-masks. The update is :class:`mitlc.learn.learners.qlearning.QLearner`'s (Watkins and Dayan, 1992),
-the one definition of it."""
+"""Tabular Q-learning on what the agent observes: any wrapped env with a discrete observation
+(:class:`mitlc.learn.envs.envvec.VectorTask`), and a finite POMDP's product, whose agent does
+not see its cell. The table is indexed by ``(frontier, observation, automaton state)`` in place
+of the product's states, and the valid actions are the env's masks. On a POMDP its greedy
+policy is memoryless, the policy class of the exact lower bound
+:func:`mitlc.check.observed.observed_bound` less the step (Q-learning on observations: Jaakkola,
+Singh and Jordan, NIPS 1994; Loch and Singh, ICML 1998). The update is
+:class:`mitlc.learn.learners.qlearning.QLearner`'s (Watkins and Dayan, 1992), the one
+definition of it."""
 
 from __future__ import annotations
 
@@ -39,9 +43,13 @@ class ObservedQLearner(QLearner):
         num_actions: int,
         config: TrainConfig,
         rng: np.random.Generator,
+        phi: FloatArray | None = None,
     ) -> None:
+        """``phi``: on a finite POMDP's product, the potential of each product state (the
+        task's shaping, :func:`mitlc.learn.learners.base.product_potential`), read from the
+        true states the simulator keeps; ``None``: no shaping."""
         self.tables = None  # type: ignore[assignment]
-        self.config, self.rng, self.phi, self.counterfactuals = config, rng, None, None
+        self.config, self.rng, self.phi, self.counterfactuals = config, rng, phi, None
         self.settings = config.q
         self.num_envs, self.num_q = self.settings.num_envs, num_q
         shape = (1 << num_sets, num_observations * num_q, num_actions)
@@ -53,7 +61,7 @@ class ObservedQLearner(QLearner):
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         state = np.asarray(env.observation, dtype=np.int64) * self.num_q + env.automaton
-        mask, valid = env.mask, env.valid_actions()
+        mask, valid, before = env.mask, env.valid_actions(), env.state
         greedy = masked_argmax(self.q_table[mask, state], valid)
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy)
@@ -63,7 +71,8 @@ class ObservedQLearner(QLearner):
         batch = Batch(mask, state, actions, step.reward, step.accepting, step.terminated,
                       step.next_mask, after)  # fmt: skip
         alpha = s.alpha + (s.alpha_end - s.alpha) * min(1.0, fraction)
-        self._update(batch, alpha, self._best(step.next_mask, after, step.next_valid))
+        best = self._best(step.next_mask, after, step.next_valid)
+        self._update(batch, alpha, best, (before, step.next_state))
         return step
 
     def _best(self, mask: IntArray, state: IntArray, valid: BoolArray) -> FloatArray:
