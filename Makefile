@@ -47,6 +47,7 @@ verify: $(STAMP)
 # command line's start-up (CPU time of mitlc fmt, compile, --help) beside `python -c pass`.
 bench: $(STAMP)
 	$(BIN)/python bench/compile_bench.py
+	$(BIN)/python bench/size_compare.py
 	$(BIN)/python bench/symbolic_bench.py
 	$(BIN)/python bench/startup_bench.py
 

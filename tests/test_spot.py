@@ -251,3 +251,14 @@ def test_unrolled_size_is_the_length_of_the_unrolled_text() -> None:
     for _ in range(300):
         formula = random_formula(rng, rng.randint(1, 4), ATOMS, bounded=False, max_bound=5)
         assert unrolled_size(formula) == len(to_spot(formula)), to_text(formula)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_nested_deadlines_agree_with_spot(seed: int) -> None:
+    """100 formulas per seed of nested bounded operators with repeated subformulas under
+    different windows (:func:`tests.test_minimize.nested`): what subsumption and the merging of
+    bisimilar states act on."""
+    from tests.test_minimize import nested
+
+    rng = random.Random(1000 + seed)
+    check([nested(rng) for _ in range(100)])

@@ -7,8 +7,9 @@ one formula's translation needs (the term store, its progression, the Master The
 letter with its acceptance marks, the epsilon jumps of a key, the propositions a key reads
 (:meth:`Rules.reads`: the successor and marks of a key depend on the letter only through
 ``letter & reads(key)``), and the :class:`~mitlc.automata.digital.DigitalState` of a key.
-The forms of a new key are :func:`tidy`, so that the keys reached do not depend on the order
-in which states were discovered: both automata reach the same ones.
+The store's normal forms do not depend on the order they were made in (its subsumption,
+:meth:`mitlc.automata.terms.TermStore.implies_at_the_end`), so the keys reached do not depend on
+the order in which states were discovered: both automata reach the same ones.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from mitlc.automata.ends import end_value
 from mitlc.automata.normalize import normalize
 from mitlc.automata.progress import Progression
 from mitlc.automata.recurrence import Recurrence, split_recurrence
-from mitlc.automata.terms import EVENTUALLY, LIT, TermStore
+from mitlc.automata.terms import TermStore
 from mitlc.automata.text import form_text
 from mitlc.limits import Deadline
 from mitlc.syntax import ast
@@ -86,13 +87,10 @@ class Rules:
     substitution: Substitution = field(init=False)
     ends: dict[int, bool] = field(init=False)
     """Memo of :func:`mitlc.automata.ends.end_value`."""
-    tidied: dict[int, int] = field(init=False)
-    """Memo of :func:`tidy`."""
 
     def __post_init__(self) -> None:
         self.substitution = Substitution(self.store)
         self.ends = {}
-        self.tidied = {}
 
     @staticmethod
     def of(formula: ast.Formula, store: TermStore | None = None) -> Rules:
@@ -114,16 +112,8 @@ class Rules:
             return Key("recurrence", self.recurrence.start(self.store))
         return self.initial_key(self.root)
 
-    def tidy(self, form: int) -> int:
-        """:func:`tidy` of ``form``, memoised: the form every key holds."""
-        found = self.tidied.get(form)
-        if found is None:
-            found = self.tidied[form] = tidy(self.store, form)
-        return found
-
     def initial_key(self, after: int) -> Key:
         """The initial-component state of obligation ``after`` (``false``, ``true``: the sinks)."""
-        after = self.tidy(after)
         if after == self.store.false:
             return SINK
         if after == self.store.true:
@@ -139,10 +129,7 @@ class Rules:
 
     def advance(self, key: Key, progressed: Sequence[int]) -> tuple[Key, int]:
         """The successor of a key other than an initial one, and its marks, given the
-        progressions of :meth:`read_forms` through a letter (in their order); the new
-        forms are :meth:`tidy`."""
-        tidied = self.tidied  # most forms are met again: their tidy form is known
-        progressed = [tidied[f] if f in tidied else self.tidy(f) for f in progressed]
+        progressions of :meth:`read_forms` through a letter (in their order)."""
         if key == SINK:
             return SINK, 0
         if key == TRUE:
@@ -212,7 +199,7 @@ class Rules:
 
     def jumps(self, key: Key, deadline: Deadline | None = None) -> Iterator[Key]:
         """The targets of the epsilon jumps of ``key``, in the order of :func:`guesses`, each
-        once (two guesses may have one :meth:`tidy` key). This order is the one both automata
+        once (two guesses may have one key). This order is the one both automata
         list a state's jumps in (:meth:`DigitalAutomaton.jumps
         <mitlc.automata.digital.DigitalAutomaton.jumps>`, :meth:`LazyAutomaton.jumps
         <mitlc.automata.lazy.LazyAutomaton.jumps>`): it depends on the key alone, not on how
@@ -220,8 +207,7 @@ class Rules:
         if key.kind == "initial" and self.mu:
             seen: set[Key] = set()
             for guess in guesses(self.substitution, key.forms[0], self.mu, self.nu, deadline):
-                tokens = tuple((k, self.tidy(s), self.tidy(p)) for k, s, p in guess.tokens)
-                found = Key.of_guess(Guess(self.tidy(guess.safety), tokens))
+                found = Key.of_guess(guess)
                 if found not in seen:
                     seen.add(found)
                     yield found
@@ -251,72 +237,3 @@ class Rules:
         if key.kind == "accepting":
             return key.guess().is_trivially_true(self.store)
         return key == TRUE
-
-
-def tidy(store: TermStore, form: int) -> int:
-    """``form`` without its *leftover* disjuncts: a cube ``L`` is dropped when another cube
-    ``K`` of ``form`` shares an atom with it and ``L`` implies ``K`` atom by atom (each atom of
-    ``K`` is in ``L`` or implied by one of its atoms, :func:`implies_at_the_end`):
-    ``x & F[0,2] b | x & F[0,3] b`` is ``x & F[0,3] b``.
-
-    Why: the store absorbs a cube that *contains* another, and a conjunction multiplied out in
-    another order can leave a cube that only *implies* one. With ``X ⊋ Y`` among the cubes of a
-    partial product, absorbing ``X`` first leaves ``Y & s`` alone; multiplying by ``s`` first
-    makes ``X & s`` too, where an atom ``t`` of ``s`` implied by an atom of ``X`` is dropped
-    (:meth:`TermStore.and_`), so ``X & s`` no longer contains ``Y & s``: it stays, implying
-    it and sharing ``Y``'s atoms. Progression conjoins a cube's atoms in the order its set
-    lists them, which follows their ids, so the order in which states were discovered
-    (breadth-first in :mod:`mitlc.automata.ldba`, by need in :mod:`mitlc.automata.lazy`):
-    without this rule the two automata could disagree by such leftovers (issue 22: 34 and
-    35 states). Cubes with no atom in common (``G[0,5] a | G[0,4] a``, met whatever the
-    order) are kept, as the translation always kept them. The rule is checked, not proved,
-    to make the automata agree: ``tests/test_lazy.py`` compares them over thousands of
-    formulas; the order-free cure would be in the store (:mod:`mitlc.automata.terms`).
-
-    Dropping ``L`` keeps the formula (``L | K`` is ``K``) and its value at the end of a trace
-    (:func:`mitlc.automata.ends.end_value`), so the end values of states."""
-    cubes = store.forms[form]
-    if len(cubes) < 2 or not _has_implied_atom(store, cubes):
-        return form
-    holders: dict[int, list[frozenset[int]]] = {}  # atom -> the cubes holding it
-    for cube in cubes:
-        for atom in cube:
-            holders.setdefault(atom, []).append(cube)
-    kept = [c for c in cubes if not any(_implies(store, c, d) for d in _sharing(c, holders))]
-    return form if len(kept) == len(cubes) else store.form(frozenset(kept))
-
-
-def implies_at_the_end(store: TermStore, a: int, b: int) -> bool:
-    """:meth:`TermStore.implies`, but for a delay ``F[k,k] p`` (``k > 0``) and a window
-    ``F[l,h] p`` around ``k``: on infinite words the delay implies the window, but at the end
-    of a trace the delay is worth ``p`` and the window fails (:mod:`mitlc.automata.ends`)."""
-    kind, lo, hi, _, _ = store.atoms[a]
-    if kind == EVENTUALLY and lo == hi > 0:
-        return a == b
-    return store.implies(a, b)
-
-
-def _has_implied_atom(store: TermStore, cubes: frozenset[frozenset[int]]) -> bool:
-    """Whether two atoms of ``cubes`` share operator and operands (so one may imply the
-    other); without such a pair, a cube implies another only by containing it."""
-    seen: set[tuple[str, int, int]] = set()
-    for atom in {a for cube in cubes for a in cube}:
-        kind, _, _, left, right = store.atoms[atom]
-        if kind != LIT:
-            shape = (kind, left, right)
-            if shape in seen:
-                return True
-            seen.add(shape)
-    return False
-
-
-def _sharing(cube: frozenset[int], holders: dict[int, list[frozenset[int]]]) -> set[frozenset[int]]:
-    """The other cubes that share an atom with ``cube``."""
-    found = {other for atom in cube for other in holders[atom]}
-    found.discard(cube)
-    return found
-
-
-def _implies(store: TermStore, cube: frozenset[int], other: frozenset[int]) -> bool:
-    """Whether every atom of ``other`` is in ``cube`` or implied by one of its atoms."""
-    return all(b in cube or any(implies_at_the_end(store, a, b) for a in cube) for b in other)

@@ -29,9 +29,9 @@ Two facts make that possible and exact.
   whole forward closure (as in the eager translation); a live one often a handful of states.
 
 Both automata read one definition of their states, :class:`mitlc.automata.keys.Rules`, whose
-keys hold :func:`mitlc.automata.keys.tidy` forms: the store's normal forms depend on the order
-in which they were made, which follows the order of discovery (breadth-first in the eager
-translation, by need here), and tidy ones do not, so both reach the same keys. Jumps are
+keys hold the store's normal forms, which do not depend on the order in which they were made
+(the order of discovery: breadth-first in the eager translation, by need here), so both reach
+the same keys. Jumps are
 listed in the order of :meth:`mitlc.automata.keys.Rules.jumps` (that of the guesses) in both,
 so a product or a gym wrapper built on either numbers a state's jump actions alike.
 

@@ -22,7 +22,10 @@ discrete-time MITL of DESIGN.md, whose bounded operators progression resolves in
   All three are deterministic; only the rest (persistence,
   as in ``F G p``, and mixtures) get epsilon jumps.
 * States with no accepting continuation merge into one rejecting sink; ``true`` is the
-  accepting sink; states are numbered in breadth-first order, so output is canonical.
+  accepting sink; states are numbered in breadth-first order, so output is canonical. Then
+  bisimilar states (the same verdicts, ends, marks and successors) are merged
+  (:mod:`mitlc.automata.minimize`); the lazy automaton keeps the states progression reaches
+  (``minimal=False`` here).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
 from mitlc.automata.graph import live_states
 from mitlc.automata.keys import SINK, Key, Rules
 from mitlc.automata.keys import StateKind as StateKind
+from mitlc.automata.minimize import bisimulation, is_minimal, quotient
 from mitlc.automata.terms import TermStore
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError, collector_paused
@@ -99,14 +103,18 @@ def translate(
     max_states: int = 1_000_000,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     deadline: Deadline | None = None,
+    minimal: bool = True,
 ) -> DigitalAutomaton:
-    """The digital LDGBA of ``formula`` (see the module docstring).
+    """The digital LDGBA of ``formula`` (see the module docstring), its bisimilar states
+    merged unless ``minimal`` is false (:func:`translate_terms`).
 
     Stops with :class:`StateLimitError` past ``max_states`` states and with
     :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
     ``deadline`` when one is given (a clock shared with the caller's other stages)."""
     clock = Deadline.of(deadline, time_limit, "compile")
-    return translate_terms(formula, max_states=max_states, deadline=clock).automaton
+    return translate_terms(
+        formula, max_states=max_states, deadline=clock, minimal=minimal
+    ).automaton
 
 
 def translate_terms(
@@ -115,11 +123,21 @@ def translate_terms(
     max_states: int = 1_000_000,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     deadline: Deadline | None = None,
+    minimal: bool = True,
 ) -> Translation:
-    """:func:`translate`, keeping the term store and each state's normal form."""
+    """:func:`translate`, keeping the term store and each state's normal form. With
+    ``minimal`` (the default), bisimilar states are merged (:mod:`mitlc.automata.minimize`);
+    without, the states are those progression reaches, as the lazy automaton's."""
     clock = Deadline.of(deadline, time_limit, "compile").at("translation")
     with collector_paused():
-        return _translate_terms(formula, max_states, clock)
+        translation = _translate_terms(formula, max_states, clock)
+        if not minimal:
+            return translation
+        block = bisimulation(translation.automaton, clock)
+        if is_minimal(block):
+            return translation
+        automaton, keys = quotient(translation.automaton, translation.keys, block)
+        return Translation(automaton, translation.store, keys)
 
 
 def _translate_terms(formula: ast.Formula, max_states: int, deadline: Deadline) -> Translation:

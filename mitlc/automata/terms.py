@@ -11,9 +11,18 @@ interval ``[lo, inf)`` and ``lo > 0`` is rewritten once at normalisation (``F[lo
 under progression: the unbounded atoms of every state are subformulas of the input.
 
 Simplification keeps forms small and canonical enough: contradictory literals empty a cube,
-a cube that contains another is dropped (absorption), and within a cube an atom implied by
+a cube that contains another is dropped (absorption), within a cube an atom implied by
 another atom with the same operator and operands is dropped (two pending ``F[0,k] b`` keep the
-tighter one).
+tighter one: ``G[0,x] p & G[0,y] p`` is ``G[0,max] p``), and, dually, in a disjunction a cube
+that implies another cube is dropped (*subsumption*: ``F[0,x] p | F[0,y] p`` is
+``F[0,max] p``, ``G[0,x] p | G[0,y] p`` is ``G[0,min] p``, the same for ``U``/``R`` with a
+common left side). A cube implies another when each atom of the other is implied by one of its
+atoms, by the interval rules of :meth:`TermStore.implies` (the syntactic subsumption of
+MTL-to-automata translations, e.g. Maler, Nickovic and Pnueli, "From MITL to timed automata",
+FORMATS 2006, and of LTL translators' formula reductions, Somenzi and Bloem, CAV 2000). Without
+it, a state holding several pending ``F[0,k] b`` of different ages keeps every subset of their
+deadlines (``F[0,k] (a & F[0,k] b)``: ``3 * 2^k`` states); with it, only the latest deadline
+(``O(k^2)``).
 """
 
 from __future__ import annotations
@@ -280,13 +289,66 @@ class TermStore:
         # until: a witness in [la,ha] is one in [lb,hb] when lb <= la and ha <= hb
         return inside
 
-    @staticmethod
-    def _absorb(cubes: Iterable[Cube]) -> Form:
-        """Drop every cube that contains another cube (``x | x & y`` is ``x``).
+    def _absorb(self, cubes: Iterable[Cube]) -> Form:
+        """Drop every cube that contains another cube (``x | x & y`` is ``x``), then every cube
+        that implies another (:meth:`_subsume`).
 
         Only a shorter cube can be contained in a cube (two distinct cubes of one length never
         are), so each cube is compared with the kept cubes shorter than it: a disjunction of
         ``n`` single atoms costs ``n``, not ``n * n``."""
+        return self._subsume(self._contained(cubes))
+
+    def _subsume(self, cubes: frozenset[Cube]) -> Form:
+        """Drop every cube that implies another cube of ``cubes`` (``x | y`` is ``y`` when
+        ``x -> y``). Beyond containment, a cube implies another only through two distinct atoms
+        of one operator with the same operands (:meth:`implies`), so only the cubes holding
+        such an atom are compared, pairwise; implication between reduced cubes is a partial
+        order, so every dropped cube has a kept one it implies. The result does not depend on
+        the order the cubes were multiplied out in: one order may leave a cube that only
+        *implies* another (an atom of it dropped by :meth:`_cube` as implied within the cube)
+        where the other leaves one that contains it; both are dropped here (issue 22 met 34 and
+        35 states for one formula, eager and lazy, before)."""
+        if len(cubes) < 2:
+            return cubes
+        groups: dict[tuple[str, int, int], set[int]] = {}
+        atoms = self.atoms
+        for cube in cubes:
+            for a in cube:
+                kind, _, _, left, right = atoms[a]
+                if kind != LIT:
+                    groups.setdefault((kind, left, right), set()).add(a)
+        shared = {a for group in groups.values() if len(group) > 1 for a in group}
+        if not shared:
+            return cubes
+        candidates = [cube for cube in cubes if not cube.isdisjoint(shared)]
+        dropped = {
+            stronger
+            for stronger in candidates
+            for weaker in candidates
+            if stronger is not weaker and self._cube_implies(stronger, weaker)
+        }
+        return cubes - dropped if dropped else cubes
+
+    def _cube_implies(self, stronger: Cube, weaker: Cube) -> bool:
+        """Whether every atom of ``weaker`` is an atom of ``stronger`` or implied by one, also
+        at the end of a trace (:meth:`implies_at_the_end`)."""
+        return all(
+            b in stronger or any(self.implies_at_the_end(a, b) for a in stronger) for b in weaker
+        )
+
+    def implies_at_the_end(self, a: int, b: int) -> bool:
+        """:meth:`implies`, but for a delay ``F[k,k] p`` (``k > 0``) and a window ``F[l,h] p``
+        around ``k``: on infinite words the delay implies the window, but at the end of a trace
+        the delay is worth ``p`` and the window fails (:mod:`mitlc.automata.ends`), so dropping
+        the delay's cube would change a state's value at the end of an episode."""
+        kind, lo, hi, _, _ = self.atoms[a]
+        if kind == EVENTUALLY and lo == hi > 0:
+            return a == b
+        return self.implies(a, b)
+
+    @staticmethod
+    def _contained(cubes: Iterable[Cube]) -> Form:
+        """Drop every cube that contains another cube (see :meth:`_absorb`)."""
         ordered = sorted(set(cubes), key=len)
         kept: list[Cube] = []
         length, shorter = -1, 0  # kept[:shorter]: the kept cubes shorter than the current one

@@ -1,0 +1,220 @@
+"""Merging the equivalent states of a digital automaton: ``minimize(translation)``.
+
+Two states are merged when they are *bisimilar*: the same component, verdict and value at the
+end of a trace, and, for every letter, transitions with the same acceptance marks into merged
+states, and epsilon jumps (in their order) into merged states. Bisimilar states accept the same
+words with the same marks on the way and the same finite-trace verdicts, so the quotient keeps
+the language, the limit-deterministic structure (jumps still go from the initial to the
+accepting component) and everything a product reads (verdicts, ends, marks, jump actions). It
+is computed component by component in reverse topological order: hash-consing for the states
+alone in their strongly connected component (as a reduced decision diagram's nodes are made),
+and, inside a larger component, signature refinement (Moore's algorithm, "Gedanken-experiments
+on sequential machines", 1956, for transition-marked automata as in the bisimulation-based
+reductions of Spot and Owl), where only the predecessors of the states that moved to a new
+block are looked at again, as in Hopcroft's algorithm ("An n log n algorithm for minimizing
+states in a finite automaton", 1971).
+
+A state's transitions are compared through its row's decision diagram with each target replaced
+by its block: two rows that only become equal once the diagram is reduced again (rare:
+transitions of one state into two merged states) are not recognised, so the quotient may be
+larger than the coarsest bisimulation there, never wrong. Progression already merges states with
+the same normal form; this merges those whose forms differ but mean the same (``G[0,2] a |
+G[0,3] a`` as a point ``F[0,0] G[0,3] a`` beside ``G[0,2] a``, which the store does not compare),
+which brings ``F[0,k] G[0,k] a`` to Spot's minimal automaton.
+
+The quotient keeps, for each block, its least state (its obligation and its key, which the
+folding reads) and the breadth-first numbering of the translation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Sequence
+
+from mitlc.automata.digital import DigitalAutomaton
+from mitlc.automata.graph import strongly_connected
+from mitlc.automata.keys import Key
+from mitlc.limits import Deadline
+
+
+def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) -> list[int]:
+    """``block[s]``: the class of state ``s`` in a bisimulation that respects the acceptance
+    marks, components, verdicts and ends (see the module docstring), numbered by least state.
+
+    The strongly connected components are taken in reverse topological order. A state that
+    leads to no component of several states (the whole of most bounded automata) gets the
+    class of its signature at once, its successors' classes being known and a self-loop
+    written as such (hash-consing, as a reduced decision diagram's nodes are made: no rounds,
+    however long the chains of deadlines). The others, together, are split by signature
+    refinement (:func:`_refine`) and never merged with the first (a cycle of states each
+    bisimilar to a self-looping one: rare; sound)."""
+    n = len(automaton.states)
+    jumps = [automaton.jumps(s) for s in range(n)] if automaton.epsilon else [()] * n
+    rows = automaton.rows
+    successors = (
+        [rows[s].targets + jumps[s] for s in range(n)]
+        if automaton.epsilon
+        else [row.targets for row in rows]
+    )
+    component = strongly_connected(successors)
+    heads = _heads(automaton)
+    order = sorted(range(n), key=component.__getitem__)  # successors first
+    size = [0] * n
+    for c in component:
+        size[c] += 1
+    cyclic = [False] * n  # in a component of several states, or leads to one
+    classes = [-1] * n
+    interned: dict[Hashable, int] = {}
+    for s in order:
+        if size[component[s]] > 1 or any(cyclic[t] for t in successors[s] if t != s):
+            cyclic[s] = True
+            continue
+        key = (
+            heads[s],
+            tuple([-1 if t == s else classes[t] for t in rows[s].targets]),
+            tuple([-1 if t == s else classes[t] for t in jumps[s]]),
+        )
+        classes[s] = interned.setdefault(key, len(interned))
+    rest = [s for s in range(n) if cyclic[s]]
+    if rest:
+        if deadline is not None:
+            deadline.check()
+        for s, block in zip(rest, _refine(automaton, jumps, heads, rest, classes), strict=True):
+            classes[s] = interned.setdefault(("cyclic", block), len(interned))
+    return _renumbered(classes)
+
+
+def _heads(automaton: DigitalAutomaton) -> list[int]:
+    """Per state, a number for what its class must agree on besides its successors: its
+    component, verdict and end, its row's diagram and marks, and how many jumps it has."""
+    found: dict[Hashable, int] = {}
+    return [
+        found.setdefault(
+            (state.component, state.verdict, state.end, row.root, row.tests, row.marks),
+            len(found),
+        )
+        for state, row in zip(automaton.states, automaton.rows, strict=True)
+    ]
+
+
+def _refine(
+    automaton: DigitalAutomaton,
+    jumps: Sequence[Sequence[int]],
+    heads: Sequence[int],
+    states: list[int],
+    classes: list[int],
+) -> list[int]:
+    """The blocks of ``states`` (closed under successors but for those classed in
+    ``classes``) in their coarsest bisimulation: Moore's refinement from one block,
+    looking again only at the predecessors of the states that moved, as Hopcroft does."""
+    inside = {s: i for i, s in enumerate(states)}
+    block = [0] * len(states)
+    members: list[set[int]] = [set(range(len(states)))]
+    predecessors: list[list[int]] = [[] for _ in states]
+    for i, s in enumerate(states):
+        for t in {*automaton.rows[s].targets, *jumps[s]}:
+            if t in inside:
+                predecessors[inside[t]].append(i)
+
+    def name(t: int) -> int:
+        found = inside.get(t)
+        return classes[t] if found is None else -1 - block[found]
+
+    def signature(i: int) -> Hashable:
+        s = states[i]
+        return (
+            heads[s],
+            tuple(map(name, automaton.rows[s].targets)),
+            tuple(map(name, jumps[s])),
+        )
+
+    touched = set(range(len(states)))
+    while touched:
+        by_block: dict[int, list[int]] = {}
+        for i in touched:
+            by_block.setdefault(block[i], []).append(i)
+        moved: list[int] = []
+        for b, group in by_block.items():
+            moved += _split(b, group, members, block, signature)
+        touched = {p for i in moved for p in predecessors[i]}
+    return block
+
+
+def _split(
+    b: int,
+    touched: list[int],
+    members: list[set[int]],
+    block: list[int],
+    signature: Callable[[int], Hashable],
+) -> list[int]:
+    """Split block ``b`` by the signatures of its ``touched`` states (the others keep theirs,
+    which their successors' blocks have not changed); return the states moved out of it."""
+    groups: dict[Hashable, list[int]] = {}
+    for s in touched:
+        groups.setdefault(signature(s), []).append(s)
+    untouched = _untouched(members[b], touched)
+    if untouched is not None:
+        stay = signature(untouched)
+    elif len(groups) == 1:
+        return []
+    else:
+        stay = max(groups, key=lambda key: len(groups[key]))
+    moved: list[int] = []
+    for key, group in groups.items():
+        if key == stay:
+            continue
+        new = len(members)
+        members.append(set(group))
+        members[b].difference_update(group)
+        for s in group:
+            block[s] = new
+        moved += group
+    return moved
+
+
+def _untouched(block: set[int], touched: list[int]) -> int | None:
+    """A state of ``block`` not in ``touched`` (``None``: all are), found without walking the
+    whole block when it is much larger than ``touched`` (a long chain splits one state a
+    round)."""
+    if len(block) == len(touched):
+        return None
+    seen = set(touched)
+    return next(s for s in block if s not in seen)
+
+
+def _renumbered(block: Sequence[int]) -> list[int]:
+    """The blocks renumbered in the order of their least state."""
+    names: dict[int, int] = {}
+    return [names.setdefault(b, len(names)) for b in block]
+
+
+def quotient(
+    automaton: DigitalAutomaton, keys: Sequence[Key], block: Sequence[int]
+) -> tuple[DigitalAutomaton, tuple[Key, ...]]:
+    """The automaton of the blocks (``block`` as :func:`bisimulation` numbers them), each the
+    copy of its least state, with the keys of those states."""
+    first: dict[int, int] = {}
+    for s, b in enumerate(block):
+        first.setdefault(b, s)
+    representatives = [first[b] for b in range(len(first))]
+    rows = tuple(automaton.rows[s].renumbered(block) for s in representatives)
+    order = tuple(
+        tuple(dict.fromkeys(block[t] for t in automaton.jumps(s))) for s in representatives
+    )
+    epsilon = tuple(sorted({(b, t) for b, targets in enumerate(order) for t in targets}))
+    merged = DigitalAutomaton(
+        source=automaton.source,
+        formula=automaton.formula,
+        propositions=automaton.propositions,
+        states=tuple(automaton.states[s] for s in representatives),
+        initial=block[automaton.initial],
+        rows=rows,
+        num_sets=automaton.num_sets,
+        epsilon=epsilon,
+        jump_order=order if epsilon else (),
+    )
+    return merged, tuple(keys[s] for s in representatives)
+
+
+def is_minimal(block: Sequence[int]) -> bool:
+    """Whether no two states share a block."""
+    return len(set(block)) == len(block)
