@@ -14,13 +14,12 @@ reductions of Spot and Owl), where only the predecessors of the states that move
 block are looked at again, as in Hopcroft's algorithm ("An n log n algorithm for minimizing
 states in a finite automaton", 1971).
 
-A state's transitions are compared through its row's decision diagram with each target replaced
-by its block: two rows that only become equal once the diagram is reduced again (rare:
-transitions of one state into two merged states) are not recognised, so the quotient may be
-larger than the coarsest bisimulation there, never wrong. Progression already merges states with
-the same normal form; this merges those whose forms differ but mean the same (``G[0,2] a |
-G[0,3] a`` as a point ``F[0,0] G[0,3] a`` beside ``G[0,2] a``, which the store does not compare),
-which brings ``F[0,k] G[0,k] a`` to Spot's minimal automaton.
+A state's transitions are compared through the reduced decision diagram of its row with each
+target replaced by its block, a canonical form of the function from letters to (block, marks).
+Progression already merges states with the same normal form; this merges those whose forms
+differ but mean the same (``G[0,2] a | G[0,3] a`` with ``G[0,3] a`` as a point ``F[0,0] G[0,3]
+a``, which the store does not compare with ``G[0,2] a``), which brings ``F[0,k] G[0,k] a`` to
+Spot's minimal automaton.
 
 The quotient keeps, for each block, its least state (its obligation and its key, which the
 folding reads) and the breadth-first numbering of the translation.
@@ -30,7 +29,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Sequence
 
-from mitlc.automata.digital import DigitalAutomaton
+from mitlc.automata.bdd import Diagrams
+from mitlc.automata.digital import DigitalAutomaton, Row
 from mitlc.automata.graph import strongly_connected
 from mitlc.automata.keys import Key
 from mitlc.limits import Deadline
@@ -70,7 +70,7 @@ def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) 
             continue
         key = (
             heads[s],
-            tuple([-1 if t == s else classes[t] for t in rows[s].targets]),
+            _row_key(rows[s], [-1 if t == s else classes[t] for t in rows[s].targets]),
             tuple([-1 if t == s else classes[t] for t in jumps[s]]),
         )
         classes[s] = interned.setdefault(key, len(interned))
@@ -84,16 +84,27 @@ def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) 
 
 
 def _heads(automaton: DigitalAutomaton) -> list[int]:
-    """Per state, a number for what its class must agree on besides its successors: its
-    component, verdict and end, its row's diagram and marks, and how many jumps it has."""
+    """Per state, a number for what its class must agree on besides its transitions: its
+    component, verdict and end."""
     found: dict[Hashable, int] = {}
     return [
-        found.setdefault(
-            (state.component, state.verdict, state.end, row.root, row.tests, row.marks),
-            len(found),
-        )
-        for state, row in zip(automaton.states, automaton.rows, strict=True)
+        found.setdefault((state.component, state.verdict, state.end), len(found))
+        for state in automaton.states
     ]
+
+
+def _row_key(row: Row, targets: list[int]) -> Hashable:
+    """The function ``letter -> (targets[k], marks[k])`` of ``row`` (its targets renamed),
+    canonically: the reduced ordered decision diagram of it, as :meth:`Row.export` writes it.
+    The row's own diagram is that one when the renamed transitions stay distinct; when two
+    come to agree it is reduced again (``G (a -> F b)``: two states alike but for a test of
+    ``a`` whose branches lead to merged states)."""
+    if len(set(zip(targets, row.marks, strict=True))) == len(targets):
+        return (row.root, row.tests, tuple(targets), row.marks)
+    diagrams = Diagrams()
+    node = row.into(diagrams, lambda k: (targets[k], row.marks[k]))
+    reduced = Row.export(diagrams, node, lambda outcome: outcome)
+    return (reduced.root, reduced.tests, reduced.targets, reduced.marks)
 
 
 def _refine(
@@ -121,11 +132,8 @@ def _refine(
 
     def signature(i: int) -> Hashable:
         s = states[i]
-        return (
-            heads[s],
-            tuple(map(name, automaton.rows[s].targets)),
-            tuple(map(name, jumps[s])),
-        )
+        row = automaton.rows[s]
+        return (heads[s], _row_key(row, list(map(name, row.targets))), tuple(map(name, jumps[s])))
 
     touched = set(range(len(states)))
     while touched:
