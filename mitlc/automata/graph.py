@@ -58,8 +58,9 @@ def live_states(
     epsilon: Sequence[tuple[int, int]],
     num_sets: int,
     rejecting: set[int],
-) -> set[int]:
-    """The states from which an accepting run exists.
+) -> tuple[set[int], list[int]]:
+    """The states from which an accepting run exists, and the SCC index of every state
+    (:func:`strongly_connected`, over letters and jumps).
 
     An SCC is accepting when its internal letter transitions carry every acceptance set (with
     zero sets: when it has an internal transition and no rejecting state). A state is live when
@@ -93,4 +94,4 @@ def live_states(
             if s not in live:
                 live.add(s)
                 frontier.append(s)
-    return live
+    return live, component

@@ -95,6 +95,10 @@ class Translation:
     store: TermStore
     keys: tuple[Key, ...]
     """``keys[s]``: the normal forms behind digital state ``s``."""
+    components: tuple[int, ...] = ()
+    """``components[s]``: the strongly connected component of ``s``, numbered in reverse
+    topological order (successors' first), as the liveness analysis found them (the sink's:
+    0); empty when not known (:func:`mitlc.automata.minimize.bisimulation` finds them)."""
 
 
 def translate(
@@ -133,7 +137,7 @@ def translate_terms(
         translation = _translate_terms(formula, max_states, clock)
         if not minimal:
             return translation
-        block = bisimulation(translation.automaton, clock)
+        block = bisimulation(translation.automaton, clock, translation.components)
         if is_minimal(block):
             return translation
         automaton, keys = quotient(translation.automaton, translation.keys, block)
@@ -195,7 +199,7 @@ class _Builder:
         keys, rules = explored.keys, self.rules
         sink_ids = {i for i, k in enumerate(keys) if k == SINK}
         delta = [row.targets for row in explored.rows]
-        live = live_states(
+        live, component = live_states(
             delta, [row.marks for row in explored.rows], explored.epsilon, rules.num_sets, sink_ids
         )
         order = _bfs_order(delta, explored.epsilon, live)
@@ -238,7 +242,8 @@ class _Builder:
             epsilon=tuple(epsilon),
             jump_order=_jump_order(explored.epsilon, order, new_id, len(states)) if epsilon else (),
         )
-        return Translation(automaton, rules.store, tuple(new_keys))
+        components = [component[old] + 1 for old in order] + ([0] if sink is not None else [])
+        return Translation(automaton, rules.store, tuple(new_keys), tuple(components))
 
 
 def _jump_order(

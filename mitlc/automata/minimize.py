@@ -36,7 +36,11 @@ from mitlc.automata.keys import Key
 from mitlc.limits import Deadline
 
 
-def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) -> list[int]:
+def bisimulation(
+    automaton: DigitalAutomaton,
+    deadline: Deadline | None = None,
+    components: Sequence[int] = (),
+) -> list[int]:
     """``block[s]``: the class of state ``s`` in a bisimulation that respects the acceptance
     marks, components, verdicts and ends (see the module docstring), numbered by least state.
 
@@ -46,7 +50,9 @@ def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) 
     written as such (hash-consing, as a reduced decision diagram's nodes are made: no rounds,
     however long the chains of deadlines). The others, together, are split by signature
     refinement (:func:`_refine`) and never merged with the first (a cycle of states each
-    bisimilar to a self-looping one: rare; sound)."""
+    bisimilar to a self-looping one: rare; sound). ``components``: the strongly connected
+    component of each state, numbered in reverse topological order, where the caller has them
+    (the translation's liveness analysis does); else they are found here."""
     n = len(automaton.states)
     jumps = [automaton.jumps(s) for s in range(n)] if automaton.epsilon else [()] * n
     rows = automaton.rows
@@ -55,22 +61,23 @@ def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) 
         if automaton.epsilon
         else [row.targets for row in rows]
     )
-    component = strongly_connected(successors)
+    component = list(components) if components else strongly_connected(successors)
     heads = _heads(automaton)
     order = sorted(range(n), key=component.__getitem__)  # successors first
-    size = [0] * n
+    size = [0] * (max(component, default=0) + 1)
     for c in component:
         size[c] += 1
     cyclic = [False] * n  # in a component of several states, or leads to one
     classes = [-1] * n
     interned: dict[Hashable, int] = {}
+    reduced: dict[Hashable, Hashable] = {}
     for s in order:
         if size[component[s]] > 1 or any(cyclic[t] for t in successors[s] if t != s):
             cyclic[s] = True
             continue
         key = (
             heads[s],
-            _row_key(rows[s], [-1 if t == s else classes[t] for t in rows[s].targets]),
+            _row_key(rows[s], [-1 if t == s else classes[t] for t in rows[s].targets], reduced),
             tuple([-1 if t == s else classes[t] for t in jumps[s]]),
         )
         classes[s] = interned.setdefault(key, len(interned))
@@ -78,7 +85,8 @@ def bisimulation(automaton: DigitalAutomaton, deadline: Deadline | None = None) 
     if rest:
         if deadline is not None:
             deadline.check()
-        for s, block in zip(rest, _refine(automaton, jumps, heads, rest, classes), strict=True):
+        blocks = _refine(automaton, jumps, heads, rest, classes, reduced)
+        for s, block in zip(rest, blocks, strict=True):
             classes[s] = interned.setdefault(("cyclic", block), len(interned))
     return _renumbered(classes)
 
@@ -93,18 +101,25 @@ def _heads(automaton: DigitalAutomaton) -> list[int]:
     ]
 
 
-def _row_key(row: Row, targets: list[int]) -> Hashable:
+def _row_key(row: Row, targets: list[int], memo: dict[Hashable, Hashable]) -> Hashable:
     """The function ``letter -> (targets[k], marks[k])`` of ``row`` (its targets renamed),
     canonically: the reduced ordered decision diagram of it, as :meth:`Row.export` writes it.
     The row's own diagram is that one when the renamed transitions stay distinct; when two
     come to agree it is reduced again (``G (a -> F b)``: two states alike but for a test of
-    ``a`` whose branches lead to merged states)."""
+    ``a`` whose branches lead to merged states), once for each row shape and renaming
+    (``memo``)."""
+    structural = (row.root, row.tests, tuple(targets), row.marks)
+    if len(targets) == 1 or len(set(targets)) == len(targets):
+        return structural
     if len(set(zip(targets, row.marks, strict=True))) == len(targets):
-        return (row.root, row.tests, tuple(targets), row.marks)
-    diagrams = Diagrams()
-    node = row.into(diagrams, lambda k: (targets[k], row.marks[k]))
-    reduced = Row.export(diagrams, node, lambda outcome: outcome)
-    return (reduced.root, reduced.tests, reduced.targets, reduced.marks)
+        return structural
+    found = memo.get(structural)
+    if found is None:
+        diagrams = Diagrams()
+        node = row.into(diagrams, lambda k: (targets[k], row.marks[k]))
+        reduced = Row.export(diagrams, node, lambda outcome: outcome)
+        found = memo[structural] = (reduced.root, reduced.tests, reduced.targets, reduced.marks)
+    return found
 
 
 def _refine(
@@ -113,6 +128,7 @@ def _refine(
     heads: Sequence[int],
     states: list[int],
     classes: list[int],
+    reduced: dict[Hashable, Hashable],
 ) -> list[int]:
     """The blocks of ``states`` (closed under successors but for those classed in
     ``classes``) in their coarsest bisimulation: Moore's refinement from one block,
@@ -133,7 +149,8 @@ def _refine(
     def signature(i: int) -> Hashable:
         s = states[i]
         row = automaton.rows[s]
-        return (heads[s], _row_key(row, list(map(name, row.targets))), tuple(map(name, jumps[s])))
+        named = list(map(name, row.targets))
+        return (heads[s], _row_key(row, named, reduced), tuple(map(name, jumps[s])))
 
     touched = set(range(len(states)))
     while touched:
