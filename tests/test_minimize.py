@@ -7,13 +7,13 @@ import random
 
 import pytest
 
-from mitlc.automata import compile_formula
+from mitlc.automata import StateLimitError, compile_formula
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.automata.ldba import translate, translate_terms
 from mitlc.automata.minimize import bisimulation
 from mitlc.automata.terms import ALWAYS, EVENTUALLY, INF, RELEASE, UNTIL, TermStore
 from mitlc.semantics import Lasso, holds_lasso
-from mitlc.syntax import ast, parse
+from mitlc.syntax import ast, parse, to_text
 from tests.strategies import ATOMS, random_formula, random_lasso
 
 F, G, X, N = ast.Eventually, ast.Always, ast.Next, ast.Not
@@ -130,6 +130,44 @@ def test_merged_states_are_bisimilar_and_keep_the_words(seed: int) -> None:
             lasso = random_lasso(rng, rng.randint(0, 3), rng.randint(1, 3), ATOMS)
             assert _accepts(small, lasso) == holds_lasso(formula, lasso) or small.epsilon
     assert merged > 0
+
+
+def coarsest(automaton: DigitalAutomaton) -> int:
+    """The number of classes of the coarsest bisimulation, by the textbook refinement: every
+    state against every letter, from the partition by component, verdict and end."""
+    n, letters = len(automaton.states), range(automaton.num_letters)
+    block = [hash((s.component, s.verdict, s.end)) for s in automaton.states]
+    while True:
+        signatures = [
+            (
+                block[s],
+                tuple((block[t], m) for t, m in (automaton.successor(s, x) for x in letters)),
+                tuple(block[j] for j in automaton.jumps(s)),
+            )
+            for s in range(n)
+        ]
+        ids: dict[object, int] = {}
+        refined = [ids.setdefault(x, len(ids)) for x in signatures]
+        if len(ids) == len(set(block)):
+            return len(ids)
+        block = refined
+
+
+def test_the_merge_is_the_coarsest_bisimulation() -> None:
+    """On 300 random formulas (half nested deadlines, half of any shape), as many classes as
+    the textbook refinement finds."""
+    rng = random.Random(7)
+    compared = 0
+    for i in range(300):
+        formula = nested(rng) if i % 2 else random_formula(rng, 3, ATOMS, False, 3)
+        try:
+            full = translate(formula, minimal=False, max_states=3000)
+        except StateLimitError:
+            continue
+        if full.num_letters <= 16:
+            assert len(set(bisimulation(full))) == coarsest(full), to_text(formula)
+            compared += 1
+    assert compared > 250
 
 
 def _accepts(automaton: DigitalAutomaton, lasso: Lasso) -> bool:

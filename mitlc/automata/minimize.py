@@ -75,12 +75,26 @@ def bisimulation(
         if size[component[s]] > 1 or any(cyclic[t] for t in successors[s] if t != s):
             cyclic[s] = True
             continue
+        row = rows[s]
         key = (
             heads[s],
-            _row_key(rows[s], [-1 if t == s else classes[t] for t in rows[s].targets], reduced),
+            _row_key(row, [-1 if t == s else classes[t] for t in row.targets], reduced),
             tuple([-1 if t == s else classes[t] for t in jumps[s]]),
         )
-        classes[s] = interned.setdefault(key, len(interned))
+        found = interned.get(key)
+        if found is not None:
+            classes[s] = found
+            continue
+        c = classes[s] = interned[key] = len(interned)  # fresh: above every class so far
+        if s in row.targets:
+            # A self-looping class: a state that goes where it does, and into it where it
+            # loops, is bisimilar to it (``b R c`` beside a first step that becomes it).
+            unfolded = (
+                heads[s],
+                _row_key(row, [c if t == s else classes[t] for t in row.targets], reduced),
+                tuple([c if t == s else classes[t] for t in jumps[s]]),
+            )
+            interned.setdefault(unfolded, c)
     rest = [s for s in range(n) if cyclic[s]]
     if rest:
         if deadline is not None:
@@ -131,14 +145,36 @@ def _refine(
     reduced: dict[Hashable, Hashable],
 ) -> list[int]:
     """The blocks of ``states`` (closed under successors but for those classed in
-    ``classes``) in their coarsest bisimulation: Moore's refinement from one block,
-    looking again only at the predecessors of the states that moved, as Hopcroft does."""
+    ``classes``) in their coarsest bisimulation: Moore's refinement from a first partition
+    coarser than it, looking again only at the predecessors of the states that moved, as
+    Hopcroft does."""
     inside = {s: i for i, s in enumerate(states)}
-    block = [0] * len(states)
-    members: list[set[int]] = [set(range(len(states)))]
+    rows = automaton.rows
+
+    def outside(t: int) -> int:
+        return -1 if t in inside else classes[t]
+
+    # The first partition: what bisimilar states share whatever the blocks inside (the set of
+    # (successor, marks) outcomes, the successors inside not told apart): coarser than the
+    # bisimulation, cheap (no diagram), and most states are alone in it, final at once.
+    first: dict[Hashable, int] = {}
+    block = [
+        first.setdefault(
+            (
+                heads[s],
+                frozenset(zip(map(outside, rows[s].targets), rows[s].marks, strict=True)),
+                frozenset(map(outside, jumps[s])),
+            ),
+            len(first),
+        )
+        for s in states
+    ]
+    members: list[set[int]] = [set() for _ in first]
+    for i, b in enumerate(block):
+        members[b].add(i)
     predecessors: list[list[int]] = [[] for _ in states]
     for i, s in enumerate(states):
-        for t in {*automaton.rows[s].targets, *jumps[s]}:
+        for t in {*rows[s].targets, *jumps[s]}:
             if t in inside:
                 predecessors[inside[t]].append(i)
 
@@ -148,11 +184,11 @@ def _refine(
 
     def signature(i: int) -> Hashable:
         s = states[i]
-        row = automaton.rows[s]
+        row = rows[s]
         named = list(map(name, row.targets))
         return (heads[s], _row_key(row, named, reduced), tuple(map(name, jumps[s])))
 
-    touched = set(range(len(states)))
+    touched = {i for i in range(len(states)) if len(members[block[i]]) > 1}
     while touched:
         by_block: dict[int, list[int]] = {}
         for i in touched:

@@ -263,16 +263,32 @@ class TermStore:
     # --- simplification -------------------------------------------------------------------------
 
     def _cube(self, atoms: frozenset[int]) -> Cube | None:
-        """Simplify a conjunction of atoms: ``None`` if it is contradictory."""
+        """Simplify a conjunction of atoms: ``None`` if it is contradictory. An atom implied
+        by another is dropped; only atoms of one operator with the same operands can imply
+        each other (:meth:`implies`), so only those are compared."""
+        table, ids = self.atoms, self._atom_ids
+        shapes: dict[tuple[str, int, int], list[int]] = {}
+        shared = False
+        for a in atoms:
+            kind, x, y, left, right = table[a]
+            if kind == LIT:
+                if ids.get((LIT, x, 1 - y, 0, 0)) in atoms:
+                    return None
+                continue
+            group = shapes.get((kind, left, right))
+            if group is None:
+                shapes[(kind, left, right)] = [a]
+            else:
+                group.append(a)
+                shared = True
+        if not shared:
+            return atoms
         kept = set(atoms)
-        for a in atoms:
-            kind, x, y, _, _ = self.atoms[a]
-            if kind == LIT and self._atom_ids.get((LIT, x, 1 - y, 0, 0)) in atoms:
-                return None
-        for a in atoms:
-            for b in atoms:
-                if a != b and a in kept and b in kept and self.implies(a, b):
-                    kept.discard(b)
+        for group in shapes.values():
+            for a in group if len(group) > 1 else ():
+                for b in group:
+                    if a != b and a in kept and b in kept and self.implies(a, b):
+                        kept.discard(b)
         return frozenset(kept)
 
     def implies(self, a: int, b: int) -> bool:
@@ -317,15 +333,25 @@ class TermStore:
                 kind, _, _, left, right = atoms[a]
                 if kind != LIT:
                     groups.setdefault((kind, left, right), set()).add(a)
-        shared = {a for group in groups.values() if len(group) > 1 for a in group}
-        if not shared:
+        shape_of = {a: shape for shape, group in groups.items() if len(group) > 1 for a in group}
+        if not shape_of:
             return cubes
-        candidates = [cube for cube in cubes if not cube.isdisjoint(shared)]
+        # A cube implies another only if it has every atom of the other that no other atom
+        # implies (literals, and atoms alone in their shape) and every shape of its others:
+        # two set inclusions, checked before the atoms are.
+        summary = {}
+        for cube in cubes:
+            shapes = frozenset(shape_of[a] for a in cube if a in shape_of)
+            if shapes:
+                summary[cube] = (cube.difference(shape_of), shapes)
         dropped = {
             stronger
-            for stronger in candidates
-            for weaker in candidates
-            if stronger is not weaker and self._cube_implies(stronger, weaker)
+            for stronger, (own, shapes) in summary.items()
+            for weaker, (other_own, other_shapes) in summary.items()
+            if stronger is not weaker
+            and other_own <= own
+            and other_shapes <= shapes
+            and self._cube_implies(stronger, weaker)
         }
         return cubes - dropped if dropped else cubes
 
