@@ -35,6 +35,10 @@ from mitlc.automata.graph import strongly_connected
 from mitlc.automata.keys import Key
 from mitlc.limits import Deadline
 
+EXPLICIT_LETTERS = 16
+"""Up to this many letters, the refinement compares states letter by letter (cheaper than
+reducing a decision diagram again)."""
+
 
 def bisimulation(
     automaton: DigitalAutomaton,
@@ -155,38 +159,67 @@ def _refine(
         return -1 if t in inside else classes[t]
 
     # The first partition: what bisimilar states share whatever the blocks inside (the set of
-    # (successor, marks) outcomes, the successors inside not told apart): coarser than the
-    # bisimulation, cheap (no diagram), and most states are alone in it, final at once.
-    first: dict[Hashable, int] = {}
-    block = [
-        first.setdefault(
-            (
-                heads[s],
-                frozenset(zip(map(outside, rows[s].targets), rows[s].marks, strict=True)),
-                frozenset(map(outside, jumps[s])),
-            ),
-            len(first),
+    # (successor, marks) outcomes, the successors inside not told apart; then the fewest steps
+    # to leave these states, and to a marked transition): coarser than the bisimulation, cheap
+    # (no diagram, no rounds), and most states are alone in it, final at once (the counters
+    # of ``G (a -> F[0,k] b)`` leave after 0, 1, ..., k steps).
+    outcomes = [
+        (
+            heads[s],
+            frozenset(zip(map(outside, rows[s].targets), rows[s].marks, strict=True)),
+            frozenset(map(outside, jumps[s])),
         )
         for s in states
     ]
-    members: list[set[int]] = [set() for _ in first]
-    for i, b in enumerate(block):
-        members[b].add(i)
+    if len(set(outcomes)) == len(states):
+        return list(range(len(states)))
     predecessors: list[list[int]] = [[] for _ in states]
     for i, s in enumerate(states):
         for t in {*rows[s].targets, *jumps[s]}:
             if t in inside:
                 predecessors[inside[t]].append(i)
+    leaves = _distances(
+        predecessors,
+        [i for i, s in enumerate(states) if any(t not in inside for t in rows[s].targets)],
+    )
+    marked = _distances(predecessors, [i for i, s in enumerate(states) if any(rows[s].marks)])
+    first: dict[Hashable, int] = {}
+    block = [
+        first.setdefault((outcomes[i], leaves[i], marked[i]), len(first))
+        for i in range(len(states))
+    ]
+    if len(first) == len(states):
+        return block
+    members: list[set[int]] = [set() for _ in first]
+    for i, b in enumerate(block):
+        members[b].add(i)
 
     def name(t: int) -> int:
         found = inside.get(t)
         return classes[t] if found is None else -1 - block[found]
 
-    def signature(i: int) -> Hashable:
-        s = states[i]
-        row = rows[s]
-        named = list(map(name, row.targets))
-        return (heads[s], _row_key(row, named, reduced), tuple(map(name, jumps[s])))
+    if automaton.num_letters <= EXPLICIT_LETTERS:
+        # A few letters: each state's transition on every letter, once; its signature is then
+        # the tuple of (block, marks) by letter, canonical without a diagram.
+        letters = range(automaton.num_letters)
+        taken = [[rows[s].transition(x) for x in letters] for s in states]
+
+        def signature(i: int) -> Hashable:
+            s = states[i]
+            row = rows[s]
+            targets, marks = row.targets, row.marks
+            return (
+                heads[s],
+                tuple([(name(targets[k]), marks[k]) for k in taken[i]]),
+                tuple(map(name, jumps[s])),
+            )
+    else:
+
+        def signature(i: int) -> Hashable:
+            s = states[i]
+            row = rows[s]
+            named = list(map(name, row.targets))
+            return (heads[s], _row_key(row, named, reduced), tuple(map(name, jumps[s])))
 
     touched = {i for i in range(len(states)) if len(members[block[i]]) > 1}
     while touched:
@@ -198,6 +231,24 @@ def _refine(
             moved += _split(b, group, members, block, signature)
         touched = {p for i in moved for p in predecessors[i]}
     return block
+
+
+def _distances(predecessors: Sequence[Sequence[int]], sources: list[int]) -> list[int]:
+    """The fewest steps from each state to one of ``sources`` (-1: none), by a breadth-first
+    search backwards."""
+    distance = [-1] * len(predecessors)
+    for i in sources:
+        distance[i] = 0
+    frontier = sources
+    while frontier:
+        reached = []
+        for i in frontier:
+            for p in predecessors[i]:
+                if distance[p] < 0:
+                    distance[p] = distance[i] + 1
+                    reached.append(p)
+        frontier = reached
+    return distance
 
 
 def _split(
