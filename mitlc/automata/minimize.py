@@ -190,6 +190,19 @@ def _refine(
     ]
     if len(first) == len(states):
         return block
+    explicit = automaton.num_letters <= EXPLICIT_LETTERS
+    letters = range(automaton.num_letters)
+    taken = [[rows[s].transition(x) for x in letters] for s in states] if explicit else []
+    if explicit:  # where reading one letter over and over leaves, and after how many steps
+        ways = [
+            [inside.get(t, ~outside(t)) for t in (rows[s].targets[k] for k in taken[i])]
+            for i, s in enumerate(states)
+        ]
+        exits = list(zip(*(_exits(ways, x) for x in letters), strict=True))
+        first = {}
+        block = [first.setdefault((block[i], exits[i]), len(first)) for i in range(len(states))]
+    if len(first) == len(states):
+        return block
     members: list[set[int]] = [set() for _ in first]
     for i, b in enumerate(block):
         members[b].add(i)
@@ -198,11 +211,9 @@ def _refine(
         found = inside.get(t)
         return classes[t] if found is None else -1 - block[found]
 
-    if automaton.num_letters <= EXPLICIT_LETTERS:
-        # A few letters: each state's transition on every letter, once; its signature is then
+    if explicit:
+        # A few letters: each state's transition on every letter, found once; its signature is
         # the tuple of (block, marks) by letter, canonical without a diagram.
-        letters = range(automaton.num_letters)
-        taken = [[rows[s].transition(x) for x in letters] for s in states]
 
         def signature(i: int) -> Hashable:
             s = states[i]
@@ -231,6 +242,32 @@ def _refine(
             moved += _split(b, group, members, block, signature)
         touched = {p for i in moved for p in predecessors[i]}
     return block
+
+
+def _exits(ways: list[list[int]], letter: int) -> list[tuple[int, int]]:
+    """For each state, reading ``letter`` over and over: ``(steps, class)`` of the first step
+    that leaves the states (``ways[i][letter]``: the state reached, or ``~class`` of the one
+    outside), ``(-1, -1)`` when it never leaves."""
+    found: list[tuple[int, int] | None] = [None] * len(ways)
+    for start in range(len(ways)):
+        path, i = [], start
+        on_path = set()
+        while i >= 0 and found[i] is None and i not in on_path:
+            path.append(i)
+            on_path.add(i)
+            i = ways[i][letter]
+        if i < 0:
+            exit_ = (1, ~i)
+        elif found[i] is not None:
+            steps, cls = found[i]  # type: ignore[misc]
+            exit_ = (steps + 1, cls) if steps >= 0 else (-1, -1)
+        else:
+            exit_ = (-1, -1)  # a cycle: the path never leaves
+        for j in reversed(path):
+            found[j] = exit_
+            steps, cls = exit_
+            exit_ = (steps + 1, cls) if steps >= 0 else (-1, -1)
+    return [f if f is not None else (-1, -1) for f in found]
 
 
 def _distances(predecessors: Sequence[Sequence[int]], sources: list[int]) -> list[int]:
