@@ -190,19 +190,19 @@ def _refine(
     ]
     if len(first) == len(states):
         return block
+    # Where reading one letter over and over leaves, and after how many steps, letter by
+    # letter from the empty one (no proposition holds: a robot waiting) while states remain
+    # together: the counters of a pending window (``!a U[5,10] a``).
     explicit = automaton.num_letters <= EXPLICIT_LETTERS
+    for x in range(automaton.num_letters if explicit else 1):
+        ways = [[inside.get(t, ~outside(t)) for t in (rows[s].successor(x)[0],)] for s in states]
+        waits = _exits(ways, 0)
+        first = {}
+        block = [first.setdefault((block[i], waits[i]), len(first)) for i in range(len(states))]
+        if len(first) == len(states):
+            return block
     letters = range(automaton.num_letters)
     taken = [[rows[s].transition(x) for x in letters] for s in states] if explicit else []
-    if explicit:  # where reading one letter over and over leaves, and after how many steps
-        ways = [
-            [inside.get(t, ~outside(t)) for t in (rows[s].targets[k] for k in taken[i])]
-            for i, s in enumerate(states)
-        ]
-        exits = list(zip(*(_exits(ways, x) for x in letters), strict=True))
-        first = {}
-        block = [first.setdefault((block[i], exits[i]), len(first)) for i in range(len(states))]
-    if len(first) == len(states):
-        return block
     members: list[set[int]] = [set() for _ in first]
     for i, b in enumerate(block):
         members[b].add(i)
@@ -244,7 +244,7 @@ def _refine(
     return block
 
 
-def _exits(ways: list[list[int]], letter: int) -> list[tuple[int, int]]:
+def _exits(ways: Sequence[Sequence[int]], letter: int) -> list[tuple[int, int]]:
     """For each state, reading ``letter`` over and over: ``(steps, class)`` of the first step
     that leaves the states (``ways[i][letter]``: the state reached, or ``~class`` of the one
     outside), ``(-1, -1)`` when it never leaves."""
