@@ -38,6 +38,9 @@ from mitlc.limits import Deadline
 EXPLICIT_LETTERS = 16
 """Up to this many letters, the refinement compares states letter by letter (cheaper than
 reducing a decision diagram again)."""
+SMALL = 16
+"""Up to this many states to refine, the refinement runs at once: its rounds cost less than
+finding where each letter leads (which spares the rounds of long counters)."""
 
 
 def bisimulation(
@@ -194,7 +197,7 @@ def _refine(
     # letter from the empty one (no proposition holds: a robot waiting) while states remain
     # together: the counters of a pending window (``!a U[5,10] a``).
     explicit = automaton.num_letters <= EXPLICIT_LETTERS
-    for x in range(automaton.num_letters if explicit else 1):
+    for x in range(automaton.num_letters if explicit else 1) if len(states) > SMALL else ():
         ways = [[inside.get(t, ~outside(t)) for t in (rows[s].successor(x)[0],)] for s in states]
         waits = _exits(ways, 0)
         first = {}
