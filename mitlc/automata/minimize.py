@@ -1,4 +1,5 @@
-"""Merging the equivalent states of a digital automaton: ``minimize(translation)``.
+"""Merging the equivalent states of a digital automaton: ``bisimulation(automaton)`` finds
+them, ``quotient(automaton, keys, block)`` merges them.
 
 Two states are merged when they are *bisimilar*: the same component, verdict and value at the
 end of a trace, and, for every letter, transitions with the same acceptance marks into merged
@@ -198,8 +199,8 @@ def _refine(
     # together: the counters of a pending window (``!a U[5,10] a``).
     explicit = automaton.num_letters <= EXPLICIT_LETTERS
     for x in range(automaton.num_letters if explicit else 1) if len(states) > SMALL else ():
-        ways = [[inside.get(t, ~outside(t)) for t in (rows[s].successor(x)[0],)] for s in states]
-        waits = _exits(ways, 0)
+        ways = [rows[s].successor(x)[0] for s in states]
+        waits = _exits([inside.get(t, ~outside(t)) for t in ways])
         first = {}
         block = [first.setdefault((block[i], waits[i]), len(first)) for i in range(len(states))]
         if len(first) == len(states):
@@ -247,9 +248,9 @@ def _refine(
     return block
 
 
-def _exits(ways: Sequence[Sequence[int]], letter: int) -> list[tuple[int, int]]:
-    """For each state, reading ``letter`` over and over: ``(steps, class)`` of the first step
-    that leaves the states (``ways[i][letter]``: the state reached, or ``~class`` of the one
+def _exits(ways: Sequence[int]) -> list[tuple[int, int]]:
+    """For each state, reading one letter over and over: ``(steps, class)`` of the first step
+    that leaves the states (``ways[i]``: the state the letter leads to, or ``~class`` of the one
     outside), ``(-1, -1)`` when it never leaves."""
     found: list[tuple[int, int] | None] = [None] * len(ways)
     for start in range(len(ways)):
@@ -258,7 +259,7 @@ def _exits(ways: Sequence[Sequence[int]], letter: int) -> list[tuple[int, int]]:
         while i >= 0 and found[i] is None and i not in on_path:
             path.append(i)
             on_path.add(i)
-            i = ways[i][letter]
+            i = ways[i]
         if i < 0:
             exit_ = (1, ~i)
         elif found[i] is not None:
