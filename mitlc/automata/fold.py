@@ -202,8 +202,9 @@ class _Folder:
         return found
 
     def _too_big(self, key: LocKey) -> bool:
-        """Folding stops paying with as many locations as states, or too many clocks."""
-        if len(self.locations) >= len(self.translation.automaton.states):
+        """Folding stops paying once a new location would make as many locations as states,
+        or with too many clocks."""
+        if len(self.locations) + 1 >= len(self.translation.automaton.states):
             return True
         return any(a[5] >= MAX_CLOCKS for a in self.timed_of(key))
 

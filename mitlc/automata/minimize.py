@@ -194,11 +194,13 @@ def _refine(
     ]
     if len(first) == len(states):
         return block
+    explicit = automaton.num_letters <= EXPLICIT_LETTERS
+    if explicit and len(states) <= SMALL:
+        return _moore(automaton, jumps, states, inside, classes, block)
     # Where reading one letter over and over leaves, and after how many steps, letter by
     # letter from the empty one (no proposition holds: a robot waiting) while states remain
     # together: the counters of a pending window (``!a U[5,10] a``).
-    explicit = automaton.num_letters <= EXPLICIT_LETTERS
-    for x in range(automaton.num_letters if explicit else 1) if len(states) > SMALL else ():
+    for x in range(automaton.num_letters if explicit else 1):
         ways = [rows[s].successor(x)[0] for s in states]
         waits = _exits([inside.get(t, ~outside(t)) for t in ways])
         first = {}
@@ -246,6 +248,48 @@ def _refine(
             moved += _split(b, group, members, block, signature)
         touched = {p for i in moved for p in predecessors[i]}
     return block
+
+
+def _moore(
+    automaton: DigitalAutomaton,
+    jumps: Sequence[Sequence[int]],
+    states: list[int],
+    inside: dict[int, int],
+    classes: list[int],
+    first: list[int],
+) -> list[int]:
+    """:func:`_refine` for a few states and letters: Moore's rounds over every state, each
+    state's signature its (block, marks) on every letter, until no block splits (cheaper, for
+    so few, than the bookkeeping of which states to look at again)."""
+    rows = automaton.rows
+    letters = range(automaton.num_letters)
+
+    def code(t: int) -> int:  # an inside state's index, or below -1 an outside class
+        found = inside.get(t)
+        return -2 - classes[t] if found is None else found
+
+    taken = []
+    for s in states:
+        row = rows[s]
+        coded = [(code(t), m) for t, m in zip(row.targets, row.marks, strict=True)]
+        taken.append(([coded[row.transition(x)] for x in letters], [code(t) for t in jumps[s]]))
+    block = first
+    while True:
+        names: dict[Hashable, int] = {}
+        split = [
+            names.setdefault(
+                (
+                    block[i],
+                    tuple([(block[j] if j >= 0 else j, m) for j, m in moves]),
+                    tuple([block[j] if j >= 0 else j for j in jumped]),
+                ),
+                len(names),
+            )
+            for i, (moves, jumped) in enumerate(taken)
+        ]
+        if len(names) == len(set(block)):
+            return split
+        block = split
 
 
 def _exits(ways: Sequence[int]) -> list[tuple[int, int]]:
