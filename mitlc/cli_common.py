@@ -11,8 +11,9 @@ from typing import Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
+from mitlc.cli_memory import with_memory_limit
 from mitlc.errors import MitlcError
-from mitlc.limits import CLI_HOW, Deadline
+from mitlc.limits import CLI_HOW, CLI_MEMORY_HOW, Deadline
 from mitlc.syntax import Formula, parse, read_spec
 
 P = ParamSpec("P")
@@ -53,7 +54,9 @@ class UsageError(MitlcError):
 
 
 def reports_errors(command: Callable[P, R]) -> Callable[P, R]:
-    """Print mitlc's errors (and unreadable files) as a message, exit 1, never a traceback."""
+    """Print mitlc's errors (and unreadable files, and memory that could not be had) as a
+    message, exit 1, never a traceback; and give the command its ``--memory-limit``
+    (:func:`mitlc.cli_memory.with_memory_limit`)."""
 
     @functools.wraps(command)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -66,8 +69,15 @@ def reports_errors(command: Callable[P, R]) -> Callable[P, R]:
             name = f"{err.filename}: " if err.filename is not None else ""
             typer.echo(f"mitlc: {name}{err.strerror or err}", err=True)
             raise typer.Exit(1) from None
+        except MemoryError:
+            typer.echo(
+                f"mitlc: out of memory (an allocation failed); lower the sizes asked for, or "
+                f"give the command more with {CLI_MEMORY_HOW}",
+                err=True,
+            )
+            raise typer.Exit(1) from None
 
-    return wrapper
+    return with_memory_limit(wrapper)
 
 
 def load_formula(spec: str | None, expr: str | None) -> Formula:

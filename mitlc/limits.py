@@ -9,9 +9,13 @@ to raise it. The values are documented in the README ("Limits").
 from __future__ import annotations
 
 import gc
+import os
+import resource
+import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from types import EllipsisType
 
 from mitlc.errors import MitlcError
 
@@ -38,6 +42,73 @@ LIBRARY_HOW = "the time_limit argument (seconds; None for none)"
 CLI_HOW = "--time-limit SECONDS (0 for none)"
 """How the command line raises a time limit."""
 
+GB = 1_000_000_000
+"""Bytes in a gigabyte, the unit of memory limits (``--memory-limit 8`` is 8 * 10^9 bytes)."""
+
+
+def _physical_memory() -> int | None:
+    """Bytes of memory this machine has, where the system says (``None`` elsewhere)."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+DEFAULT_MEMORY_LIMIT = min(8.0, 0.75 * (_physical_memory() or 8 * GB) / GB)
+"""Gigabytes of resident memory a command (or a library call) may hold before it stops
+(``--memory-limit GB``; the ``memory_limit`` argument of the library's entry points).
+
+8 GB, or three quarters of the machine's memory where it has less: the checks and compiles
+this project measures peak under 6 GB (the 100x100 grid of ``make bench-check``), while a
+runaway translation (``F[0,1000] G[0,1000] a``) reached 12 GB in a minute and would take a
+smaller machine into swap or the kernel's out-of-memory killer. The whole process counts
+(what ``top`` shows as its resident size), Python's and the libraries' memory alike."""
+
+MEMORY_CHECK_SECONDS = 0.01
+"""The resident size is read at most this often by :meth:`Deadline.check_now` (reading it
+takes a few microseconds; a construction adds well under 100 MB in 10 ms)."""
+
+LIBRARY_MEMORY_HOW = "the memory_limit argument (GB; None for none)"
+"""How a library caller raises a memory limit (the command line says ``--memory-limit``)."""
+
+CLI_MEMORY_HOW = "--memory-limit GB (0 for none)"
+"""How the command line raises a memory limit."""
+
+_command_memory_limit: list[float | None] = [DEFAULT_MEMORY_LIMIT]
+"""The memory limit of the command being run (set by the command line's ``--memory-limit``),
+which every :class:`Deadline` made without one of its own takes."""
+
+
+def set_memory_limit(gigabytes: float | None) -> None:
+    """Make ``gigabytes`` (``None`` or 0: none) the memory limit of the deadlines made from now
+    on without a limit of their own: what ``--memory-limit`` does for a whole command."""
+    _command_memory_limit[0] = gigabytes if gigabytes else None
+
+
+def memory_limit() -> float | None:
+    """The memory limit, in GB, that a deadline made now without one of its own takes."""
+    return _command_memory_limit[0]
+
+
+def resident_bytes() -> int:
+    """The resident size of this process now, in bytes (Linux: ``/proc/self/statm``;
+    elsewhere the peak resident size, which only grows)."""
+    try:
+        with open("/proc/self/statm", "rb") as handle:
+            return int(handle.read().split()[1]) * _PAGE
+    except (OSError, IndexError, ValueError):
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        return peak if sys.platform == "darwin" else peak * 1024
+
+
+_PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
+
+
+def gigabytes(count: float) -> str:
+    """``count`` bytes as a short text in GB (``8.2 GB``; ``0.012 GB`` below one)."""
+    value = count / GB
+    return f"{value:.1f} GB" if value >= 1 else f"{value:.2g} GB"
+
 
 class LimitError(MitlcError):
     """A computation stopped at one of mitlc's limits (the message names it)."""
@@ -53,7 +124,18 @@ class Deadline:
     stages a deadline is passed to) says in the message where the time ran out.
     """
 
-    __slots__ = ("_calls", "_end", "every", "how", "seconds", "stage", "what")
+    __slots__ = (
+        "_calls",
+        "_end",
+        "_next_memory",
+        "every",
+        "how",
+        "memory",
+        "memory_how",
+        "seconds",
+        "stage",
+        "what",
+    )
 
     def __init__(
         self,
@@ -62,27 +144,47 @@ class Deadline:
         how: str = CLI_HOW,
         *,
         every: int = 256,
+        memory: float | EllipsisType | None = ...,
+        memory_how: str = CLI_MEMORY_HOW,
     ) -> None:
         self.seconds = seconds if seconds else None
         self.what, self.how, self.every = what, how, max(1, every)
         self._end = None if self.seconds is None else time.monotonic() + self.seconds
         self._calls = 0
         self.stage = ""
+        chosen = memory_limit() if isinstance(memory, EllipsisType) else memory
+        self.memory: float | None = chosen if chosen else None
+        """The memory limit in GB (``None``: none); by default the command's
+        (:func:`memory_limit`)."""
+        self.memory_how = memory_how
+        self._next_memory = 0.0
 
     @classmethod
     def none(cls) -> Deadline:
-        """A deadline that never passes."""
-        return cls(None, "")
+        """A deadline that never passes, without a memory limit."""
+        return cls(None, "", memory=None)
 
     @classmethod
-    def of(cls, deadline: Deadline | None, time_limit: float | None, what: str) -> Deadline:
-        """``deadline`` when given, else a new one of ``time_limit`` seconds for ``what``
-        (raised with :data:`LIBRARY_HOW`): how a public entry point takes either."""
-        return deadline if deadline is not None else cls(time_limit, what, LIBRARY_HOW)
+    def of(
+        cls,
+        deadline: Deadline | None,
+        time_limit: float | None,
+        what: str,
+        memory_limit: float | EllipsisType | None = ...,
+    ) -> Deadline:
+        """``deadline`` when given, else a new one of ``time_limit`` seconds and
+        ``memory_limit`` GB (by default the command's, :func:`memory_limit`) for ``what``
+        (raised with :data:`LIBRARY_HOW`, :data:`LIBRARY_MEMORY_HOW`): how a public entry
+        point takes either."""
+        if deadline is not None:
+            return deadline
+        return cls(
+            time_limit, what, LIBRARY_HOW, memory=memory_limit, memory_how=LIBRARY_MEMORY_HOW
+        )
 
     @property
     def unlimited(self) -> bool:
-        """True for a deadline that never passes."""
+        """True for a deadline that never passes (it may still have a memory limit)."""
         return self._end is None
 
     def remaining(self) -> float | None:
@@ -95,25 +197,58 @@ class Deadline:
         return self
 
     def check(self) -> None:
-        """Raise :class:`LimitError` when the time is up (the clock is read every ``every``
-        calls)."""
-        if self._end is None:
+        """Raise :class:`LimitError` when the time is up or the memory past its limit (the
+        clock is read every ``every`` calls)."""
+        if self._end is None and self.memory is None:
             return
         self._calls += 1
         if self._calls % self.every == 0:
             self.check_now()
 
     def check_now(self) -> None:
-        """Raise :class:`LimitError` when the time is up (reads the clock now)."""
-        if self._end is not None and time.monotonic() > self._end:
+        """Raise :class:`LimitError` when the time is up (reads the clock now) or the process's
+        resident memory is past the limit (read at most every :data:`MEMORY_CHECK_SECONDS`)."""
+        if self._end is None and self.memory is None:
+            return
+        now = time.monotonic()
+        if self._end is not None and now > self._end:
             raise self.error()
+        if self.memory is not None and now >= self._next_memory:
+            self._next_memory = now + MEMORY_CHECK_SECONDS
+            resident = resident_bytes()
+            if resident > self.memory * GB:
+                raise self.memory_error(resident)
+
+    def reserve(self, count: int, what: str) -> None:
+        """Raise :class:`LimitError` before ``count`` more bytes are taken for ``what`` (an
+        estimate, made before a product or a table is built) when they would take the process
+        past the memory limit."""
+        if self.memory is None:
+            return
+        resident = resident_bytes()
+        if resident + count > self.memory * GB:
+            where = self._where()
+            raise LimitError(
+                f"{self.what} stopped at the memory limit of {self.memory:g} GB{where}: "
+                f"{what} would take about {gigabytes(count)} more, beside the "
+                f"{gigabytes(resident)} held; raise it with {self.memory_how}"
+            )
+
+    def _where(self) -> str:
+        return f" (during {self.stage})" if self.stage and self.stage != self.what else ""
 
     def error(self) -> LimitError:
         """The one-line error of this deadline having passed."""
-        where = f" (during {self.stage})" if self.stage and self.stage != self.what else ""
         return LimitError(
-            f"{self.what} stopped at the time limit of {self.seconds:g} s{where}; raise it "
-            f"with {self.how}"
+            f"{self.what} stopped at the time limit of {self.seconds:g} s{self._where()}; "
+            f"raise it with {self.how}"
+        )
+
+    def memory_error(self, resident: int) -> LimitError:
+        """The one-line error of the memory having passed its limit."""
+        return LimitError(
+            f"{self.what} stopped at the memory limit of {self.memory:g} GB{self._where()}, "
+            f"holding {gigabytes(resident)}; raise it with {self.memory_how}"
         )
 
 

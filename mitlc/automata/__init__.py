@@ -1,6 +1,7 @@
 """MITL to automata: the digital LDGBA (ground truth), its folding and its emitters."""
 
 from dataclasses import dataclass
+from types import EllipsisType
 from typing import TYPE_CHECKING, Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState
@@ -36,15 +37,17 @@ def compile_formula(
     *,
     max_states: int = DEFAULT_MAX_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> Compiled:
     """Translate ``formula`` to its digital LDGBA and fold it into a T-LDGBA.
 
     Both stages cost time linear in the states built (the guards: ``n log n``). They stop with
     :class:`StateLimitError` past ``max_states`` digital states, and with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit) or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit) or at
     ``deadline`` when one is given (a clock the caller shares with its other stages)."""
-    clock = Deadline.of(deadline, time_limit, "compile")
+    clock = Deadline.of(deadline, time_limit, "compile", memory_limit)
     translation = translate_terms(formula, max_states=max_states, deadline=clock)
     with collector_paused():
         timed = fold(translation, deadline=clock.at("folding"))

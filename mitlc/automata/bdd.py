@@ -25,6 +25,8 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Iterator
 from typing import Any
 
+from mitlc.limits import Deadline
+
 LEAF = -1
 """The variable of a terminal node (below every proposition)."""
 
@@ -40,6 +42,9 @@ class Diagrams:
         self._leaves: dict[Hashable, int] = {}
         self._inner: dict[int, int] = {}
         self._memos: dict[Hashable, dict[int, int]] = {}
+        self.deadline = Deadline.none()
+        """Looked at in every operation's recursion (:meth:`Deadline.check`): one state's
+        progression can be a long computation of its own (``F p0 & ... & F p61``)."""
 
     def leaf(self, value: Hashable) -> int:
         """The terminal holding ``value`` (values are told apart by equality: do not mix
@@ -97,6 +102,7 @@ class Diagrams:
         found = memo.get(key)
         if found is not None:
             return found
+        self.deadline.check()
         var, low, high = self.var, self.low, self.high
         vf, vg = var[f], var[g]
         if vf == vg:
@@ -123,6 +129,7 @@ class Diagrams:
     def _map(self, memo: dict[int, int], op: Callable[[Any], Hashable], f: int) -> int:
         found = memo.get(f)
         if found is None:
+            self.deadline.check()
             if self.var[f] == LEAF:
                 found = self.leaf(op(self.values[f]))
             else:

@@ -252,6 +252,7 @@ class LazyAutomaton:
     ) -> None:
         clock = Deadline.none() if deadline is None else deadline
         rules = Rules.of(formula)
+        rules.progression.diagrams.deadline = clock
         self.propositions: tuple[str, ...] = rules.store.propositions
         self.num_sets: int = rules.num_sets
         self.formula: str = to_text(formula)

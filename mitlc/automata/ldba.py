@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from types import EllipsisType
 from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
@@ -106,6 +107,7 @@ def translate(
     *,
     max_states: int = 1_000_000,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
     minimal: bool = True,
 ) -> DigitalAutomaton:
@@ -113,9 +115,10 @@ def translate(
     merged unless ``minimal`` is false (:func:`translate_terms`).
 
     Stops with :class:`StateLimitError` past ``max_states`` states and with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given (a clock shared with the caller's other stages)."""
-    clock = Deadline.of(deadline, time_limit, "compile")
+    clock = Deadline.of(deadline, time_limit, "compile", memory_limit)
     return translate_terms(
         formula, max_states=max_states, deadline=clock, minimal=minimal
     ).automaton
@@ -126,13 +129,14 @@ def translate_terms(
     *,
     max_states: int = 1_000_000,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
     minimal: bool = True,
 ) -> Translation:
     """:func:`translate`, keeping the term store and each state's normal form. With
     ``minimal`` (the default), bisimilar states are merged (:mod:`mitlc.automata.minimize`);
     without, the states are those progression reaches, as the lazy automaton's."""
-    clock = Deadline.of(deadline, time_limit, "compile").at("translation")
+    clock = Deadline.of(deadline, time_limit, "compile", memory_limit).at("translation")
     with collector_paused():
         translation = _translate_terms(formula, max_states, clock)
         if not minimal:
@@ -151,7 +155,9 @@ def _translate_terms(formula: ast.Formula, max_states: int, deadline: Deadline) 
             f"{len(propositions)} propositions; a letter is a 64-bit word, which allows at "
             f"most {MAX_PROPOSITIONS}"
         )
-    builder = _Builder(Rules.of(formula), max_states, deadline)
+    rules = Rules.of(formula)
+    rules.progression.diagrams.deadline = deadline
+    builder = _Builder(rules, max_states, deadline)
     explored = builder.explore()
     return builder.finish(explored, to_text(formula))
 

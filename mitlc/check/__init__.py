@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from types import EllipsisType
 from typing import Any
 
 from mitlc.check.solve import Solution, pmax, pmax_horizon
@@ -96,16 +97,18 @@ def check(
     *,
     max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> CheckReport:
     """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy.
 
     Refuses a product past ``max_product_states``
     (:class:`mitlc.product.explicit.ProductSizeError`); stops with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds for all three stages together
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held for all three stages together
     (``None``: no limit), or at ``deadline`` when one is given."""
     start = time.perf_counter()
-    clock = Deadline.of(deadline, time_limit, "check")
+    clock = Deadline.of(deadline, time_limit, "check", memory_limit)
     product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
     solution = pmax(product, deadline=clock.at("pmax"))
     within, _ = pmax_horizon(

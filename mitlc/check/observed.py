@@ -24,6 +24,7 @@ weighs the states by the distribution of the fully observable optimal policy.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import EllipsisType
 
 import numpy as np
 from scipy.sparse import csr_matrix, vstack
@@ -135,6 +136,7 @@ def observed_bound(
     tolerance: float = 1e-9,
     max_cells: int = MAX_CELLS,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> ObservedBound:
     """The best observation-based policy found and its exact success probability within
@@ -142,9 +144,10 @@ def observed_bound(
     gains at most ``tolerance``, or after ``max_sweeps``. Raises :class:`ObservedBoundError` for
     a world without observations, a product with epsilon jumps (a choice the table does not
     express) or more than ``max_cells`` steps x (observation, state) pairs. Stops with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given (read at every step of every pass)."""
-    clock = Deadline.of(deadline, time_limit, "the observation-based bound")
+    clock = Deadline.of(deadline, time_limit, "the observation-based bound", memory_limit)
     steps = world.horizon if horizon is None else horizon
     model = _model(world, product)
     observing = model.observing

@@ -20,6 +20,7 @@ solve (:func:`_solve_chain`'s fallback) runs to its end once started.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import EllipsisType
 
 import numpy as np
 from scipy.sparse import csc_matrix, csr_matrix, identity
@@ -149,13 +150,15 @@ def max_reach(
     graph: csr_matrix | None = None,
     *,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> Solution:
     """The maximal probability of reaching ``target`` from every state, and a policy for it
     (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the caller has it). Stops with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
-    clock = Deadline.of(deadline, time_limit, "pmax")
+    clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
     matrix = _choice_matrix(product)
     into = matrix.tocsc()
     graph = state_graph(product) if graph is None else graph
@@ -195,12 +198,14 @@ def pmax(
     product: Product,
     *,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> Solution:
     """The maximal probability of satisfying the formula (accepting MECs, then reachability).
-    Stops with :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no
+    Stops with :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no
     limit), or at ``deadline`` when one is given."""
-    clock = Deadline.of(deadline, time_limit, "pmax")
+    clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
     graph = state_graph(product)
     accepting = accepting_states(product, graph, deadline=clock)
     return max_reach(product, accepting, graph, deadline=clock)
@@ -217,6 +222,7 @@ def pmax_horizon(
     *,
     keep_history: bool = True,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> tuple[float, list[FloatArray]]:
     """The maximal probability of success within ``horizon`` steps from the initial state
@@ -236,9 +242,10 @@ def pmax_horizon(
     (with ``keep_history`` they are one read-only copy of it), so a horizon far past the
     product's depth costs no more than the depth. Otherwise a step costs at least the states it
     recomputes and a horizon of a billion steps is stopped by the time limit:
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
-    clock = Deadline.of(deadline, time_limit, "pmax_horizon")
+    clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
     masks = 1 << product.num_sets
     n = product.num_states
     t = product.transitions

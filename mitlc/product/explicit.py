@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from types import EllipsisType
 from typing import Any
 
 import numpy as np
@@ -202,6 +203,7 @@ def build_product(
     *,
     max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> Product:
     """The reachable product of ``world`` and ``automaton`` (see the module docstring).
@@ -210,11 +212,14 @@ def build_product(
     anything is built, or a lazy one, whose states are made as the product reaches them; either
     way the build stops with :class:`ProductSizeError` once it has more than
     ``max_product_states`` states (``None``: no limit). It stops with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
     if isinstance(automaton, DigitalAutomaton):
         check_size(world, automaton, max_product_states)
-    clock = Deadline.of(deadline, time_limit, "the product build").at("the product build")
+    clock = Deadline.of(deadline, time_limit, "the product build", memory_limit).at(
+        "the product build"
+    )
     monitor = TaskMonitor(automaton, world.rewards)
     return _Builder(world, monitor, clock, max_product_states).build()
 

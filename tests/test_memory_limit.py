@@ -1,0 +1,144 @@
+"""The memory limit beside the time limit (issue 26): every command takes ``--memory-limit``,
+the library's entry points take ``memory_limit``, the long loops look at the resident size,
+a watchdog stops what they cannot, and the time limit is looked at inside one state's
+transitions. A tiny limit stands in for an explosive formula: the process already holds more
+than it, so the first look stops the work, with the message a real run would end with."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import typer
+
+from mitlc.automata import compile_formula
+from mitlc.cli import app
+from mitlc.limits import GB, Deadline, LimitError, memory_limit, resident_bytes
+from mitlc.syntax import parse
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = "0.02"  # GB: less than any Python process holds with mitlc imported
+EXPLOSIVE = "F[0,1000] G[0,1000] a"  # about a million states of hundreds of atoms each
+
+
+def _mitlc(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    """The command in a process of its own (the watchdog ends the process it runs in)."""
+    return subprocess.run(
+        [sys.executable, "-m", "mitlc", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+    )
+
+
+def _one_line(stderr: str) -> str:
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, stderr
+    assert "Traceback" not in stderr
+    return lines[0]
+
+
+def test_every_command_takes_a_memory_limit() -> None:
+    group = typer.main.get_command(app)
+    assert isinstance(group, typer.core.TyperGroup)
+    missing = [
+        name
+        for name, command in group.commands.items()
+        if "--memory-limit" not in {opt for p in command.params for opt in p.opts}
+    ]
+    assert not missing, f"commands without --memory-limit: {missing}"
+
+
+def _peak_gb() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024 / GB
+
+
+@pytest.mark.parametrize(
+    ("command", "stage"),
+    [
+        (("compile", "-e", EXPLOSIVE, "-o", "/dev/null"), "translation"),
+        (("check", "specs/paper/case1.yaml", "-e", EXPLOSIVE), "the product build"),
+    ],
+)
+def test_an_explosive_formula_stops_at_the_memory_limit(
+    command: tuple[str, ...], stage: str
+) -> None:
+    # 0.1 GB: above what a command holds when it starts, so the formula's own growth (about
+    # 20 MB a second) reaches it; the library's check stops it, not the watchdog.
+    done = _mitlc(*command, "--memory-limit", "0.1")
+    assert done.returncode == 1
+    line = done.stderr.splitlines()[-1]
+    assert "Traceback" not in done.stderr
+    assert f"mitlc {command[0]} stopped at the memory limit of 0.1 GB" in line, line
+    assert f"during {stage}" in line
+    assert "--memory-limit GB (0 for none)" in line
+    assert _peak_gb() < 0.1 * 1.1
+
+
+def test_a_command_that_starts_past_its_limit_stops_at_once() -> None:
+    done = _mitlc("check", "specs/paper/case1.yaml", "--memory-limit", TINY)
+    assert done.returncode == 1
+    line = _one_line(done.stderr)
+    assert "mitlc check stopped at the memory limit of 0.02 GB" in line, line
+
+
+def test_without_a_memory_limit_the_command_runs() -> None:
+    done = _mitlc("compile", "-e", "F[0,3] a", "--memory-limit", "0", "-o", "/dev/null")
+    assert done.returncode == 0, done.stderr
+
+
+def test_the_watchdog_stops_memory_taken_outside_mitlc_loops() -> None:
+    # One allocation in a library call, where no loop of mitlc's looks: the watchdog ends the
+    # process with one line and status 1.
+    script = (
+        "import time\n"
+        "from mitlc.cli_memory import _Watchdog\n"
+        "from mitlc.limits import resident_bytes\n"
+        "dog = _Watchdog((resident_bytes() + 50_000_000) / 1e9)\n"
+        "block = bytearray(300_000_000)\n"
+        "block[::4096] = b'x' * len(block[::4096])\n"
+        "time.sleep(5)\n"
+        "print('not stopped')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 1
+    assert "not stopped" not in done.stdout
+    assert "stopped at the memory limit" in _one_line(done.stderr)
+
+
+def test_the_library_takes_a_memory_limit() -> None:
+    with pytest.raises(LimitError, match=r"memory limit of 0.02 GB.*memory_limit argument"):
+        compile_formula(parse(EXPLOSIVE), memory_limit=float(TINY))
+    # None: no limit (the small formula compiles)
+    compile_formula(parse("F[0,5] a"), memory_limit=None)
+
+
+def test_a_deadline_takes_the_commands_memory_limit_by_default() -> None:
+    assert Deadline(None, "x").memory == memory_limit()
+    assert Deadline(None, "x", memory=None).memory is None
+    assert Deadline.none().memory is None
+
+
+def test_reserve_refuses_what_would_pass_the_limit() -> None:
+    deadline = Deadline(None, "the product build", memory=(resident_bytes() + GB) / GB)
+    deadline.reserve(1000, "a small table")  # fits
+    with pytest.raises(LimitError, match=r"a big table would take about 2\.0 GB more"):
+        deadline.reserve(2 * GB, "a big table")
+
+
+def test_the_time_limit_is_looked_at_inside_one_states_transitions() -> None:
+    # The progression of one state of 20 independent eventualities is a long computation of its
+    # own (decision diagrams over 20 propositions); it used to run 38 s past a 5 s limit.
+    wide = parse(" & ".join(f"F p{i}" for i in range(20)))
+    start = time.monotonic()
+    with pytest.raises(LimitError, match=r"time limit of 0\.5 s"):
+        compile_formula(wide, time_limit=0.5, memory_limit=None)
+    assert time.monotonic() - start < 2.0
