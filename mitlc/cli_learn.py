@@ -107,7 +107,7 @@ def train_command(
     algo: Annotated[
         str | None, typer.Option("--algo", help=f"One of {', '.join(ALGORITHMS)}.")
     ] = None,
-    seed: Annotated[int | None, typer.Option("--seed", min=0, help="The run's seed.")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="The run's seed.")] = None,
     episodes: Annotated[
         int | None,
         typer.Option(
@@ -156,6 +156,10 @@ def train_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
+    from mitlc.learn.bounds import check_option
+
+    check_option("train", "--episodes", episodes)  # before the learners are imported
+    check_option("train", "--seed", seed)
     from mitlc.learn.config import config_for
     from mitlc.learn.run import train
     from mitlc.learn.rundir.files import RunError
@@ -309,7 +313,7 @@ def eval_command(
             help=f"Episodes (default: the run's setting), all run at once: 1 to {MAX_EVAL:,}.",
         ),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", min=0, help="The evaluation's seed.")] = 12345,
+    seed: Annotated[int, typer.Option("--seed", help="The evaluation's seed.")] = 12345,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
     pomdp_bounds: Annotated[
         bool,
@@ -324,12 +328,10 @@ def eval_command(
     ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
-    from mitlc.learn.rundir.files import RunError
+    from mitlc.learn.bounds import check_option
 
-    if episodes is not None and episodes <= 0:
-        raise RunError("--episodes must be positive")
-    if episodes is not None and episodes > MAX_EVAL:
-        raise RunError(f"--episodes: at most {MAX_EVAL:,} (they run at once), got {episodes:,}")
+    check_option("eval", "--episodes", episodes)
+    check_option("eval", "--seed", seed)
     deadline = command_deadline(time_limit, "eval")
     _print_evaluation(run, episodes, seed, as_json=as_json, bounds=pomdp_bounds, deadline=deadline)
 
@@ -340,11 +342,15 @@ def plot_command(
         Path | None, typer.Option("--out", help="Where to write the PNGs (default: RUN).")
     ] = None,
     trajectories: Annotated[
-        int, typer.Option("--trajectories", min=0, max=100, help="Greedy trajectories to draw.")
+        int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
     ] = 5,
-    seed: Annotated[int, typer.Option("--seed", min=0, help="The trajectories' seed.")] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="The trajectories' seed.")] = 0,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
+    from mitlc.learn.bounds import check_option
+
+    check_option("plot", "--trajectories", trajectories)  # before matplotlib is imported
+    check_option("plot", "--seed", seed)
     from mitlc.learn.plots import plot_run
     from mitlc.learn.setting import read_config
 

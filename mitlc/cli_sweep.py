@@ -48,12 +48,13 @@ def sweep_command(
         bool,
         typer.Option("--resume", help="Go on with the sweep in --out: skip finished trials."),
     ] = False,
-    reps: Annotated[
-        int, typer.Option("--reps", min=100, help="Bootstrap resamples of the report.")
-    ] = 2000,
+    reps: Annotated[int, typer.Option("--reps", help="Bootstrap resamples of the report.")] = 2000,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
 ) -> None:
     """Train and evaluate every trial of a sweep on Ray, then write its report."""
+    from mitlc.learn.bounds import check_option
+
+    check_option("sweep", "--reps", reps)
     _require("ray", "rliable")
     from mitlc.sweep.ray_run import Event, run_sweep
     from mitlc.sweep.report import report
@@ -94,17 +95,21 @@ def sweep_command(
 
 def report_command(
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="A sweep's directory.")],
-    reps: Annotated[
-        int, typer.Option("--reps", min=100, help="Bootstrap resamples (rliable).")
-    ] = 2000,
+    reps: Annotated[int, typer.Option("--reps", help="Bootstrap resamples (rliable).")] = 2000,
     seed: Annotated[int, typer.Option("--seed", help="The bootstrap's seed.")] = 0,
 ) -> None:
     """Write a sweep's report: rliable's statistics over seeds, tables and figures."""
+    from mitlc.learn.bounds import check_option
+
+    check_option("report", "--reps", reps)
+    check_option("report", "--seed", seed)
     _require("rliable")
-    from mitlc.sweep.report import report
+    from mitlc.inputs import MAX_RECORD_BYTES, read_capped
+    from mitlc.sweep.report import REPORT_MD, report
 
     written = report(directory, reps=reps, seed=seed)
-    sys.stdout.write((directory / "report.md").read_text(encoding="utf-8"))
+    text = read_capped(directory / REPORT_MD, MAX_RECORD_BYTES, "a sweep's report")
+    sys.stdout.write(text.decode("utf-8"))
     for path in written.files:
         typer.echo(str(path))
 

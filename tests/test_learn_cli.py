@@ -63,7 +63,7 @@ def test_errors_exit_1_without_a_traceback(tmp_path: Path) -> None:
         (["train", str(tmp_path / "none.yaml")], "none.yaml"),
         (["train", CASE1, "--resume"], "--resume needs --out"),
         (["eval", str(tmp_path)], "not a run directory (no config.json)"),
-        (["eval", str(tmp_path), "--episodes", "0"], "--episodes must be positive"),
+        (["eval", str(tmp_path), "--episodes", "0"], "--episodes: expected a positive value"),
     ]
     for args, message in cases:
         result = runner.invoke(app, args)

@@ -29,10 +29,11 @@ import math
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, TypeVar
+from typing import Any, Literal, TypeVar
 
 from mitlc.errors import MitlcError
-from mitlc.learn.names import ALGORITHMS, MAX_EVAL_EPISODES
+from mitlc.learn.bounds import PRODUCTS, TRAINING
+from mitlc.learn.names import ALGORITHMS
 
 Algorithm = Literal[
     "q",
@@ -171,8 +172,8 @@ SB3_STEPS = 100_000
 class SB3Config:
     """Stable-Baselines3's algorithms (``sb3-ppo``, ``sb3-dqn``, ``sb3-maskable-ppo``,
     ``sb3-recurrent-ppo``, ``sb3-sac``, ``sb3-td3``; :mod:`mitlc.learn.backends.sb3`). Budgets
-    count environment steps. A 0 where :attr:`RANGES` allows it means SB3's own default for the
-    algorithm."""
+    count environment steps. A 0 where its bound allows it (:data:`mitlc.learn.bounds.TRAINING`)
+    means SB3's own default for the algorithm."""
 
     steps: int = SB3_STEPS
     """The run's total environment steps (``total_timesteps``), also when resumed."""
@@ -218,26 +219,6 @@ class SB3Config:
     """DQN, SAC, TD3: counterfactual experience in the replay memory, every transition's over
     the task's other states (:mod:`mitlc.learn.backends.sb3_crm`; not with shaping)."""
 
-    RANGES: ClassVar[dict[str, tuple[float, float]]] = {
-        "log_every": (0, math.inf),
-        "checkpoint_every": (0, math.inf),
-        "learning_rate": (0, math.inf),
-        "n_steps": (0, math.inf),
-        "batch_size": (0, math.inf),
-        "n_epochs": (1, math.inf),
-        "ent_coef": (0, math.inf),
-        "buffer_size": (0, math.inf),
-        "learning_starts": (0, math.inf),
-        "tau": (0, 1),
-        "train_freq": (0, math.inf),
-        "gradient_steps": (0, math.inf),
-        "noise_std": (0, math.inf),
-        "exploration_fraction": (0, 1),
-        "exploration_final_eps": (0, 1),
-        "target_update_interval": (1, math.inf),
-    }
-    """Allowed values by field (they replace the rules by name of :func:`_check_ranges`)."""
-
 
 @dataclass(frozen=True, slots=True)
 class TrainConfig:
@@ -282,12 +263,6 @@ class TrainConfig:
     drqn: DRQNConfig = field(default_factory=DRQNConfig)
     sb3: SB3Config = field(default_factory=SB3Config)
     """The section of every ``sb3-*`` algorithm."""
-
-    RANGES: ClassVar[dict[str, tuple[float, float]]] = {
-        "shaping": (0, math.inf),
-        "shaping_reach": (0, math.inf),
-    }
-    """Allowed values of the fields that the rules by name leave open."""
 
     @property
     def learner(self) -> QConfig | DQNConfig | DRQNConfig | SB3Config:
@@ -350,6 +325,8 @@ def _build(cls: type[T], values: Mapping[str, Any], path: str) -> T:
 
 
 def _check_ranges(config: object, path: str) -> None:
+    """Each number of ``config`` (the section at ``path``) against its bound in
+    :data:`mitlc.learn.bounds.TRAINING`."""
     for f in dataclasses.fields(config):  # type: ignore[arg-type]
         value = getattr(config, f.name)
         where = f"{path}.{f.name}" if path else f.name
@@ -357,44 +334,31 @@ def _check_ranges(config: object, path: str) -> None:
             continue
         if isinstance(value, float) and not math.isfinite(value):
             raise ConfigError(f"{where}: expected a finite number, got {value!r}")
-        bounds = getattr(type(config), "RANGES", {}).get(f.name)
-        if bounds is not None:  # a section's own ranges replace the rules by name below
-            if not bounds[0] <= value <= bounds[1]:
-                raise ConfigError(f"{where}: expected a value in {list(bounds)}, got {value!r}")
-            continue
-        if f.name == "seed" and not 0 <= value < 2**63:
-            raise ConfigError(f"{where}: expected an integer from 0 to 2^63 - 1, got {value!r}")
-        if f.name.startswith(("gamma", "epsilon")) and not 0.0 <= value <= 1.0:
-            raise ConfigError(f"{where}: expected a value in [0, 1], got {value!r}")
-        if f.name in _POSITIVE and value <= 0:
-            raise ConfigError(f"{where}: expected a positive value, got {value!r}")
-        if f.name in _AT_MOST and value > _AT_MOST[f.name]:
-            raise ConfigError(f"{where}: expected at most {_AT_MOST[f.name]}, got {value!r}")
+        problem = TRAINING[where].problem(value)  # a number without a bound is a KeyError
+        if problem is not None:
+            raise ConfigError(f"{where}: {problem}")
 
 
-_POSITIVE = {
-    "episodes",
-    "steps",
-    "log_every",
-    "checkpoint_every",
-    "keep_checkpoints",
-    "num_envs",
-    "alpha",
-    "hidden",
-    "layers",
-    "lr",
-    "batch_size",
-    "replay_size",
-    "train_every",
-    "target_update",
-    "sequence_length",
-    "eval_episodes",
-}
+def _check_products(config: TrainConfig) -> None:
+    """The products of settings against :data:`mitlc.learn.bounds.PRODUCTS`."""
+
+    def get(path: str) -> float:
+        section, name = path.split(".")
+        value: float = getattr(getattr(config, section), name)
+        return value
+
+    for product in PRODUCTS:
+        problem = product.problem(get)
+        if problem is not None:
+            raise ConfigError(f"{product.first}: {problem}")
 
 
-_AT_MOST = {"layers": 100, "eval_episodes": MAX_EVAL_EPISODES}
-"""Bounds where a bigger value would only make the learner's construction loop for ages, or
-an evaluation hold more episodes at once than memory does."""
+def _build_train(values: Mapping[str, Any]) -> TrainConfig:
+    """The settings of ``values`` (paths without the ``training.`` prefix), every bound
+    checked."""
+    config = _build(TrainConfig, values, "")
+    _check_products(config)
+    return config
 
 
 def _nest(overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -450,7 +414,7 @@ def resolve(
     if isinstance(algo, str) and algo.startswith("sb3-"):
         _sb3_defaults(values)
     try:
-        return _build(TrainConfig, values, "")
+        return _build_train(values)
     except ConfigError as err:
         raise ConfigError(f"training.{err}") from None
 
@@ -477,8 +441,9 @@ def _section_episodes(values: dict[str, Any]) -> dict[str, int]:
             section = dict(section)
             where = f"training.{name}.episodes"
             budget = _coerce(section.pop("episodes"), int, where)
-            if budget <= 0:
-                raise ConfigError(f"{where}: expected a positive value, got {budget!r}")
+            problem = TRAINING["episodes"].problem(budget)
+            if problem is not None:
+                raise ConfigError(f"{where}: {problem}")
             budgets[name] = budget
             values[name] = section
     return budgets
@@ -517,8 +482,17 @@ def to_data(config: TrainConfig) -> dict[str, Any]:
 
 
 def from_data(data: Mapping[str, Any]) -> TrainConfig:
-    """The settings saved by :func:`to_data`."""
-    return _build(TrainConfig, data, "")
+    """The settings saved by :func:`to_data`, every bound checked (a run's ``config.json``)."""
+    return _build_train(data)
+
+
+def validate(config: TrainConfig) -> None:
+    """Check settings built in Python (not read by :func:`resolve` or :func:`from_data`)
+    against every bound: a :class:`ConfigError` naming the path (``training.q.num_envs``)."""
+    try:
+        from_data(to_data(config))
+    except ConfigError as err:
+        raise ConfigError(f"training.{err}") from None
 
 
 __all__ = [
@@ -534,4 +508,5 @@ __all__ = [
     "from_data",
     "resolve",
     "to_data",
+    "validate",
 ]

@@ -21,4 +21,5 @@ DEVICES = ("auto", "cpu", "cuda")
 """Every ``device`` of a world's ``training`` (``--device``; :mod:`mitlc.learn.device`)."""
 
 MAX_EVAL_EPISODES = 1_000_000
-"""The most episodes an evaluation runs (all at once, so memory grows with them)."""
+"""The most episodes an evaluation runs (all at once, so memory grows with them): the bound of
+``eval_episodes`` and ``eval --episodes`` in :mod:`mitlc.learn.bounds`."""

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.learn.config import TrainConfig
+from mitlc.learn.config import TrainConfig, validate
 from mitlc.learn.envs.envvec import VectorTask
 from mitlc.learn.envs.vec import Tables
 from mitlc.learn.envs.vector import ProductVectorEnv
@@ -216,7 +216,9 @@ def train(
     ``should_stop`` is polled after every step; when it says so, the run checkpoints and
     returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
     :func:`prepare`), not the training, which runs its episodes. ``notes`` is given what the
-    user should know before the run (:func:`setting_notes`)."""
+    user should know before the run (:func:`setting_notes`). Settings outside their bounds
+    (:mod:`mitlc.learn.bounds`) are a :class:`~mitlc.learn.config.ConfigError` first."""
+    validate(config)
     if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.backends.sb3
         from mitlc.learn.backends import sb3
 

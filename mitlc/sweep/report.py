@@ -34,7 +34,7 @@ import numpy as np
 from mitlc.sweep import stats
 from mitlc.sweep.scores import has_optimum, normalised, quiet
 from mitlc.sweep.spec import SweepError
-from mitlc.sweep.trial import RESULT, TRIALS
+from mitlc.sweep.trial import RESULT, TRIALS, read_record
 
 STATISTICS = ("iqm", "median", "mean", "optimality_gap")
 REPORT_MD, REPORT_JSON = "report.md", "report.json"
@@ -99,7 +99,7 @@ def _results(directory: Path) -> list[dict[str, Any]]:
     results = []
     for path in found:
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = read_record(path)
             float(data["score"])
             str(data["world_name"]), str(data["setting"]), int(data["seed"])
         except (OSError, ValueError, KeyError, TypeError) as err:
@@ -109,9 +109,14 @@ def _results(directory: Path) -> list[dict[str, Any]]:
 
 
 def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
-    """Compute and write the report of the sweep in ``directory`` (see the module docstring)."""
+    """Compute and write the report of the sweep in ``directory`` (see the module docstring);
+    ``reps`` and ``seed`` within the bounds of ``mitlc report``'s options
+    (:data:`mitlc.learn.bounds.OPTIONS`), else an :class:`~mitlc.learn.bounds.OutOfRange`."""
     from mitlc.files import write_atomically
+    from mitlc.learn.bounds import check_option
 
+    check_option("report", "--reps", reps)
+    check_option("report", "--seed", seed)
     directory = Path(directory)
     results = _results(directory)
     by_world: dict[str, dict[str, dict[int, dict[str, Any]]]] = defaultdict(

@@ -30,6 +30,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -37,9 +38,11 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.errors import MitlcError
+from mitlc.learn.bounds import SWEEP
 
-MAX_TRIALS = 10_000
-"""The most trials one sweep may have."""
+MAX_TRIALS = int(SWEEP["trials"].high)
+"""The most trials one sweep may have (:data:`mitlc.learn.bounds.SWEEP`, as every bound of a
+sweep file's numbers)."""
 KEYS = ("name", "worlds", "learners", "seeds", "grid", "episodes", "eval_episodes",
         "cpus_per_trial", "max_failures")  # fmt: skip
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
@@ -185,18 +188,17 @@ class _Checker:
         grid = self._grid(data.get("grid", {}))
         episodes = self._count(data, "episodes", None)
         eval_episodes = self._count(data, "eval_episodes", 1000)
-        failures = self._count(data, "max_failures", 2, low=0)
-        cpus = data.get("cpus_per_trial", 1)
-        if isinstance(cpus, bool) or not isinstance(cpus, int | float) or not 0 < cpus <= 1024:
-            self.add(("cpus_per_trial",), f"expected a number of CPUs above 0, got {cpus!r}")
+        failures = self._count(data, "max_failures", 2)
+        cpus = self._cpus(data.get("cpus_per_trial", 1))
         if self.problems or worlds is None or learners is None or seeds is None or grid is None:
             return None
-        points = [tuple(zip(grid, values, strict=True)) for values in
-                  itertools.product(*grid.values())]  # fmt: skip
-        count = len(worlds) * len(learners) * len(points) * len(seeds)
+        sizes = [len(values) for values in grid.values()]  # counted before the grid is expanded
+        count = len(worlds) * len(learners) * math.prod(sizes) * len(seeds)
         if count > MAX_TRIALS:
             self.add((), f"{count:,} trials: more than {MAX_TRIALS:,} (mitlc's limit)")
             return None
+        points = [tuple(zip(grid, values, strict=True)) for values in
+                  itertools.product(*grid.values())]  # fmt: skip
         trials = []
         for (world_index, (world, world_name)), learner in itertools.product(
             enumerate(worlds), learners
@@ -278,20 +280,20 @@ class _Checker:
         return learners
 
     def _seeds(self, value: Any) -> list[int] | None:
-        if isinstance(value, int) and not isinstance(value, bool) and 0 < value <= MAX_TRIALS:
+        count, each = SWEEP["seeds"], SWEEP["seeds[]"]
+        if _whole(value) and count.problem(value) is None:
             return list(range(value))
         if (
             isinstance(value, list) and value
-            and all(isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**31
-                    for s in value)
+            and all(_whole(s) and each.problem(s) is None for s in value)
         ):  # fmt: skip
             if len(set(value)) != len(value):
                 self.add(("seeds",), "a seed is listed twice")
                 return None
             return list(value)
         if value is not None:
-            self.add(("seeds",), f"expected a count above 0 or a non-empty list of seeds "
-                     f"(0 to 2**31 - 1), got {value!r}")  # fmt: skip
+            self.add(("seeds",), f"expected a count above 0 (at most {count.high:,}) or a "
+                     f"non-empty list of seeds in {each.range_text()}, got {value!r}")  # fmt: skip
         return None
 
     def _grid(self, value: Any) -> dict[str, list[Any]] | None:
@@ -311,14 +313,32 @@ class _Checker:
             grid[str(key)] = values
         return grid
 
-    def _count(self, data: dict[str, Any], key: str, default: int | None, low: int = 1) -> Any:
+    def _count(self, data: dict[str, Any], key: str, default: int | None) -> Any:
+        """The whole number at ``key`` within its bound (:data:`mitlc.learn.bounds.SWEEP`)."""
         value = data.get(key, default)
         if value is None:
             return None
-        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 10**9:
-            self.add((key,), f"expected a whole number from {low}, got {value!r}")
+        bound = SWEEP[key]
+        if not _whole(value):
+            self.add((key,), f"expected a whole number in {bound.range_text()}, got {value!r}")
+            return default
+        problem = bound.problem(value)
+        if problem is not None:
+            self.add((key,), problem)
             return default
         return value
+
+    def _cpus(self, value: Any) -> float:
+        """``cpus_per_trial``: a number within its bound."""
+        bound = SWEEP["cpus_per_trial"]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.add(("cpus_per_trial",), f"expected a number of CPUs in {bound.range_text()}, "
+                     f"got {value!r}")  # fmt: skip
+            return 1.0
+        problem = bound.problem(value)
+        if problem is not None:
+            self.add(("cpus_per_trial",), problem)
+        return float(value)
 
     def _settings_fit(
         self,
@@ -353,6 +373,11 @@ class _Checker:
             except MitlcError as err:
                 self.add(("learners", learner.name), f"{_first_line(err)} (on worlds[{index}])")
         return False
+
+
+def _whole(value: Any) -> bool:
+    """Whether ``value`` is an integer (not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _first_line(err: BaseException) -> str:
