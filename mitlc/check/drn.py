@@ -8,7 +8,13 @@ there succeeds by the trace it read (:func:`mitlc.product.explicit.product_ends`
 satisfied state among them), so that the success of an episode of ``H`` steps without
 epsilon jumps or acceptance sets is Storm's ``Pmax=? [F[H,H] "end"]``. Only states reachable
 from the initial state are written (Storm's LTL checker fails on labelled unreachable
-states), numbered in product order.
+states), numbered breadth-first from the start states: the start states first (``0`` when
+there is one), then each state after the first one that reaches it. Storm builds its product
+with the task's automaton from every state of the model when it checks a property for all
+states (stormpy's default), and sizes that product's matrix by its highest target: a model
+whose last state nothing reaches (a start state numbered last, as product order numbers it)
+can then make Storm fail with ``Invalid item count (n) of state labeling (states: n - 1)``.
+Breadth-first, every state but the start states is reached from one before it.
 
 A world whose start is drawn (:attr:`mitlc.worlds.model.World.start_distribution`) has several
 ``init`` states; a comment line gives their probabilities, and the probability mitlc reports is
@@ -35,14 +41,32 @@ def reachable(product: Product) -> list[int]:
     return sorted(seen)
 
 
+def breadth_first(product: Product) -> list[int]:
+    """The reachable product states in the order :func:`to_drn` numbers them: the start states,
+    then every other state in breadth-first order from them (a state's choices in order)."""
+    t = product.transitions
+    order = list(starts(product))
+    seen = set(order)
+    index = 0
+    while index < len(order):
+        x = order[index]
+        index += 1
+        lo, hi = int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])
+        for y in t.targets[int(t.indptr[lo]) : int(t.indptr[hi])].tolist():
+            if y not in seen:
+                seen.add(y)
+                order.append(y)
+    return order
+
+
 def starts(product: Product) -> dict[int, float]:
     """The start states of the product and their probabilities."""
     return dict(product.starts)
 
 
 def to_drn(product: Product) -> str:
-    """The DRN text of ``product`` (its reachable part)."""
-    states = reachable(product)
+    """The DRN text of ``product`` (its reachable part, numbered breadth-first)."""
+    states = breadth_first(product)
     number = {x: i for i, x in enumerate(states)}
     choices = sum(int(product.choice_ptr[x + 1] - product.choice_ptr[x]) for x in states)
     first = starts(product)

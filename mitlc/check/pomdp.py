@@ -15,7 +15,9 @@ has no way to meet the acceptance condition without reaching ``satisfied`` (chec
 Storm on the fully observable product: ``Pmax=? [(G !"satisfied") & acceptance] = 0``; for
 zero acceptance sets, the acceptance is ``G !"violated"``, so the check says that no policy
 can stay pending forever with positive probability). This holds for the bounded co-safety
-tasks of the paper; otherwise :func:`pomdp_bounds` raises ``ValueError``.
+tasks of the paper; otherwise :func:`pomdp_bounds` raises :class:`PomdpBoundsError` (a
+``ValueError``). Every Storm call goes through :func:`mitlc.check.storm.storm_guard`: Storm's
+failures raise :class:`mitlc.check.storm.StormError` (a ``ValueError`` too).
 
 Bounds: ``lower`` from ``stormpy.pomdp.verify_with_belief_unfolding`` (the value of a
 finite part of the belief MDP, under-approximating the maximum), ``upper`` from
@@ -41,11 +43,15 @@ from __future__ import annotations
 import math
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from types import EllipsisType
 from typing import Any
 
 from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
 from mitlc.check.solve import pmax
+from mitlc.check.storm import storm_guard
+from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.explicit import (
     SATISFIED,
@@ -59,6 +65,11 @@ from mitlc.worlds.model import World
 
 TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
 """The reachability property the POMDP checkers are given."""
+
+
+class PomdpBoundsError(MitlcError, ValueError):
+    """The task is not reachability of ``satisfied`` on the product, so Storm's POMDP
+    checkers cannot bound it."""
 
 
 def unavailable_reason() -> str | None:
@@ -180,7 +191,7 @@ def to_pomdp_drn(
 def _reduction_residual(product: Product, directory: Path) -> float:
     """The maximal probability, on the fully observable product, of meeting the acceptance
     condition without ever reaching ``satisfied`` (0 when reachability of ``satisfied`` is
-    the task under every policy)."""
+    the task under every policy), the largest over the start states."""
     import stormpy
 
     present = labels_present(product)
@@ -188,10 +199,12 @@ def _reduction_residual(product: Product, directory: Path) -> float:
     never = '(G !"satisfied")' if "satisfied" in present else "(G true)"
     path = directory / "product.drn"
     path.write_text(to_drn(product), encoding="utf-8")
-    model = stormpy.build_model_from_drn(str(path))
-    prop = stormpy.parse_properties(f"Pmax=? [{never} & ({inner})]")[0]
-    result = stormpy.model_checking(model, prop)
-    return float(result.get_value_vector()[model.initial_states[0]])
+    with storm_guard("the fully observable product"):
+        model = stormpy.build_model_from_drn(str(path))
+        prop = stormpy.parse_properties(f"Pmax=? [{never} & ({inner})]")[0]
+        result = stormpy.model_checking(model, prop, only_initial_states=True)
+        values = result.get_value_vector()
+        return max(float(values[int(s)]) for s in model.initial_states)
 
 
 def _environment(precision: str) -> Any:
@@ -199,10 +212,11 @@ def _environment(precision: str) -> Any:
     import stormpy
     import stormpy.environments
 
-    environment = stormpy.environments.sound()
-    for solver in (environment.solver().min_max(), environment.solver().native()):
-        solver.precision = stormpy.Rational(precision)
-        solver.relative_termination_criterion = False
+    with storm_guard(f"its sound environment (precision {precision})"):
+        environment = stormpy.environments.sound()
+        for solver in (environment.solver().min_max(), environment.solver().native()):
+            solver.precision = stormpy.Rational(precision)
+            solver.relative_termination_criterion = False
     return environment
 
 
@@ -218,6 +232,7 @@ def pomdp_bounds(
     precision: str = "1/10000000000",
     max_product_states: int | None = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
+    memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> dict[str, Any] | None:
     """Lower and upper bounds on the maximal probability, over observation-based policies, of
@@ -230,68 +245,34 @@ def pomdp_bounds(
     ``max_exploration_size`` beliefs and ``max_exploration_time`` seconds for the unfolding;
     ``resolution`` for the discretization (skipped when not ``discretize``). Storm solves the
     belief MDPs soundly to the absolute ``precision`` (a rational's text). Stops with
-    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds (``None``: no limit), or at
+    :class:`mitlc.limits.LimitError` after ``time_limit`` seconds
+    or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given (see the module docstring for Storm's part).
     """
     if unavailable_reason() is not None:
         return None
-    import stormpy
-    import stormpy.io
-    import stormpy.pomdp
-
     start = time.perf_counter()
-    clock = Deadline.of(deadline, time_limit, "the POMDP bounds")
+    clock = Deadline.of(deadline, time_limit, "the POMDP bounds", memory_limit)
     product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
     full = float(pmax(product, deadline=clock.at("pmax")).values[product.initial])
-    with tempfile.TemporaryDirectory() as tmp:
-        directory = Path(tmp)
-        residual = _reduction_residual(product, directory)
-        if residual > 1e-9:
-            raise ValueError(
-                "the task is not reachability of 'satisfied' on this product: a policy meets "
-                f"the acceptance condition without reaching it w.p. {residual}"
-            )
-        text = to_pomdp_drn(
-            world,
-            product,
-            world.horizon if horizon_success else None,
-            deadline=clock.at("the POMDP's text"),
-        )
-        path = directory / "pomdp.drn"
-        path.write_text(text, encoding="utf-8")
-        options = stormpy.io.DirectEncodingParserOptions()
-        options.build_choice_labeling = True
-        model = stormpy.build_model_from_drn(str(path), options=options)
+    model = _pomdp_model(world, product, world.horizon if horizon_success else None, clock)
     built = time.perf_counter()
-    prop = stormpy.parse_properties(TARGET_PROPERTY)[0]
-    lower_result = stormpy.pomdp.verify_with_belief_unfolding(
-        model,
-        prop,
-        max_exploration_size=max_exploration_size,
-        max_exploration_time=_exploration_time(max_exploration_time, clock.at("Storm's unfolding")),
-        environment=_environment(precision),
-    )
+    time_left = _exploration_time(max_exploration_time, clock.at("Storm's unfolding"))
+    lower = _unfolding(model, max_exploration_size, time_left, precision)
     unfolded = time.perf_counter()
-    upper_raw: float | None = None
-    upper_complete = False
+    upper: Explored | None = None
     if discretize:
         clock.at("Storm's discretization").check_now()
-        upper_result = stormpy.pomdp.verify_with_belief_discretization(
-            model, prop, resolution, environment=_environment(precision)
-        )
-        upper_raw = float(upper_result.value)
-        upper_complete = bool(upper_result.statistics.completed_exploration)
+        upper = _discretization(model, resolution, precision)
     done = time.perf_counter()
-    lower = float(lower_result.value)
-    upper = upper_raw if upper_raw is not None else full
     return {
-        "lower": lower,
-        "upper": upper,
-        "upper_discretized": upper_raw,
+        "lower": lower.value,
+        "upper": upper.value if upper is not None else full,
+        "upper_discretized": upper.value if upper is not None else None,
         "pmax": full,
-        "lower_complete": bool(lower_result.statistics.completed_exploration),
-        "upper_complete": upper_complete,
-        "explored_beliefs": int(lower_result.statistics.explored_beliefs),
+        "lower_complete": lower.complete,
+        "upper_complete": upper.complete if upper is not None else False,
+        "explored_beliefs": lower.beliefs,
         "product_states": len(reachable(product)),
         "pomdp_states": model.nr_states,
         "pomdp_observations": model.nr_observations,
@@ -301,6 +282,81 @@ def pomdp_bounds(
         "method": "stormpy.pomdp.verify_with_belief_unfolding (lower), "
         f"verify_with_belief_discretization resolution {resolution} (upper)",
     }
+
+
+@dataclass(frozen=True, slots=True)
+class Explored:
+    """What one of Storm's belief explorations found: its bound, whether it explored every
+    belief it met, and how many it explored."""
+
+    value: float
+    complete: bool
+    beliefs: int
+
+
+def _pomdp_model(world: World, product: Product, horizon: int | None, clock: Deadline) -> Any:
+    """Storm's model of the product POMDP (:func:`to_pomdp_drn`, with ``horizon``), once the
+    task is known to be reachability of ``satisfied`` on ``product``
+    (:class:`PomdpBoundsError` where it is not)."""
+    import stormpy
+    import stormpy.io
+
+    with tempfile.TemporaryDirectory() as tmp:
+        directory = Path(tmp)
+        residual = _reduction_residual(product, directory)
+        if residual > 1e-9:
+            raise PomdpBoundsError(
+                "the task is not reachability of 'satisfied' on this product: a policy meets "
+                f"the acceptance condition without reaching it w.p. {residual}"
+            )
+        text = to_pomdp_drn(world, product, horizon, deadline=clock.at("the POMDP's text"))
+        path = directory / "pomdp.drn"
+        path.write_text(text, encoding="utf-8")
+        with storm_guard("the product POMDP"):
+            options = stormpy.io.DirectEncodingParserOptions()
+            options.build_choice_labeling = True
+            return stormpy.build_model_from_drn(str(path), options=options)
+
+
+def _unfolding(model: Any, max_size: int | None, max_time: int | None, precision: str) -> Explored:
+    """Storm's lower bound: the belief unfolding of ``model``, within ``max_size`` beliefs and
+    ``max_time`` seconds."""
+    import stormpy
+    import stormpy.pomdp
+
+    environment = _environment(precision)
+    with storm_guard("the belief unfolding of the product POMDP"):
+        prop = stormpy.parse_properties(TARGET_PROPERTY)[0]
+        result = stormpy.pomdp.verify_with_belief_unfolding(
+            model,
+            prop,
+            max_exploration_size=max_size,
+            max_exploration_time=max_time,
+            environment=environment,
+        )
+        return _explored(result)
+
+
+def _discretization(model: Any, resolution: int, precision: str) -> Explored:
+    """Storm's upper bound: the belief discretization of ``model`` at ``resolution``."""
+    import stormpy
+    import stormpy.pomdp
+
+    environment = _environment(precision)
+    with storm_guard(f"the belief discretization (resolution {resolution}) of the product POMDP"):
+        prop = stormpy.parse_properties(TARGET_PROPERTY)[0]
+        result = stormpy.pomdp.verify_with_belief_discretization(
+            model, prop, resolution, environment=environment
+        )
+        return _explored(result)
+
+
+def _explored(result: Any) -> Explored:
+    """The figures of one of Storm's belief-exploration results."""
+    stats = result.statistics
+    return Explored(
+        float(result.value), bool(stats.completed_exploration), int(stats.explored_beliefs)
+    )
 
 
 def _exploration_time(asked: int | None, deadline: Deadline) -> int | None:

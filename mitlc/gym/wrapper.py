@@ -81,10 +81,14 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import RecordConstructorArgs
 
-from mitlc.automata import DigitalAutomaton, translate
-from mitlc.automata.clocks import ClockView, ClockViewError, clock_view, clock_view_of
-from mitlc.automata.ldba import translate_terms
-from mitlc.errors import MitlcError
+from mitlc.automata import DigitalAutomaton
+from mitlc.gym.arguments import (
+    TaskWrapperError,
+    check_arguments,
+    shaping_of,
+    task_of,
+    task_rewards,
+)
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
 from mitlc.labels import (
     LabelDeclarationError,
@@ -95,13 +99,12 @@ from mitlc.labels import (
     letter_reader,
 )
 from mitlc.labels.distance import distances
+from mitlc.labels.function import call_checked
 from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
 from mitlc.labels.values import NO_MOMENT, Moment
-from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
-from mitlc.task.potential import TaskPotential, task_potential
 from mitlc.task.rules import VERDICT_CODES, TaskRewards
-from mitlc.worlds.model import BoolArray, Rewards
+from mitlc.worlds.model import BoolArray
 
 ENV_ID = "mitlc/Task-v0"
 """``gymnasium.make(ENV_ID, env_id=..., spec=..., labels=..., horizon=...)``."""
@@ -112,57 +115,9 @@ EnvEnd = Literal["auto", "step", "finish"]
 TaskObs = Literal["state", "clocks"]
 
 
-class TaskWrapperError(MitlcError, ValueError):
-    """The wrapper cannot be built as asked (or a lazy automaton outgrew its declared size)."""
-
-
 class EpisodeCutWarning(UserWarning):
     """The inner env ends its episodes before the task's horizon (the world then stays on its
     last position until the task is decided or the horizon is reached)."""
-
-
-def _rewards(rewards: TaskRewards | Mapping[str, float] | None) -> TaskRewards:
-    if rewards is None:
-        return Rewards()
-    if isinstance(rewards, Mapping):
-        unknown = [k for k in rewards if k not in Rewards.__dataclass_fields__]
-        if unknown:
-            raise TaskWrapperError(
-                f"rewards: unknown term {unknown[0]!r} (expected accept, satisfied, violated, move)"
-            )
-        return Rewards(**{k: float(v) for k, v in rewards.items()})
-    return rewards
-
-
-def _task(spec: str | TaskAutomaton, task_obs: TaskObs) -> tuple[TaskAutomaton, ClockView | None]:
-    """The automaton of ``spec`` and, with ``task_obs="clocks"``, its clock view."""
-    if task_obs not in ("state", "clocks"):
-        raise TaskWrapperError(f"task_obs: expected 'state' or 'clocks', got {task_obs!r}")
-    if isinstance(spec, str):
-        if task_obs == "state":
-            return translate(parse(spec, "<spec>")), None
-        translation = translate_terms(parse(spec, "<spec>"))
-        return translation.automaton, clock_view(translation)
-    if task_obs == "state":
-        return spec, None
-    if not isinstance(spec, DigitalAutomaton):
-        raise TaskWrapperError(
-            "task_obs: the clocks of a lazy automaton are not known: use 'state'"
-        )
-    try:
-        return spec, clock_view_of(spec)
-    except ClockViewError as err:
-        raise TaskWrapperError(f"task_obs: {err}") from None
-
-
-def _shaping(automaton: TaskAutomaton, potential: float | None) -> TaskPotential | None:
-    if potential is None:
-        return None
-    if isinstance(potential, bool) or not isinstance(potential, int | float) or potential < 0:
-        raise TaskWrapperError(f"potential: expected a reach >= 0, got {potential!r}")
-    if not isinstance(automaton, DigitalAutomaton):
-        raise TaskWrapperError("potential: the shaping of a lazy automaton is not known")
-    return task_potential(automaton)
 
 
 class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
@@ -201,19 +156,19 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
             env_end=env_end, task_obs=task_obs, potential=potential,
         )  # fmt: skip
+        options = dict(
+            rewards=rewards, horizon=horizon, reward_mode=reward_mode, flatten=flatten,
+            max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
+            env_end=env_end, task_obs=task_obs, potential=potential,
+        )  # fmt: skip
+        check_arguments(env, spec, labels, options)
         gym.Wrapper.__init__(self, env)
-        if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
-            raise TaskWrapperError(f"horizon: expected a positive integer, got {horizon!r}")
-        if reward_mode not in ("replace", "add"):
-            raise TaskWrapperError(f"reward_mode: expected 'replace' or 'add', got {reward_mode!r}")
-        if env_end not in ("auto", "step", "finish"):
-            raise TaskWrapperError(f"env_end: expected 'auto', 'step' or 'finish', got {env_end!r}")
-        if env_key in ("automaton", "frontier", "location", "clocks"):
-            raise TaskWrapperError(f"env_key: {env_key!r} is the name of the task's part")
-        automaton, self.clocks = _task(spec, task_obs)
+        automaton, self.clocks = task_of(spec, task_obs)
         self.automaton: TaskAutomaton = automaton
-        self.monitor = TaskMonitor(automaton, _rewards(rewards))
+        self.monitor = TaskMonitor(automaton, task_rewards(rewards))
         self.labels = as_labels(labels, env.observation_space)
+        self._function_unchecked = not isinstance(self.labels, Labels)
+        """A labelling function's result is checked once, at the first reset."""
         self._read = letter_reader(self.labels, automaton.propositions)
         self._unwrapped = env.unwrapped
         values = self.labels.values() if isinstance(self.labels, Labeller) else ()
@@ -223,10 +178,10 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self.held = 0
         """The letters read so far, or-ed: bit ``i`` is set once ``automaton.propositions[i]``
         has held (a proposition that never holds is almost always a mistaken label)."""
-        self.horizon, self.reward_mode, self.flatten = horizon, reward_mode, flatten
+        self.horizon, self.reward_mode, self.flatten = int(horizon), reward_mode, bool(flatten)
         self._cut_warned = False
         limit = time_limit(env)
-        if limit is not None and limit < horizon:
+        if limit is not None and limit < self.horizon:
             self._warn_cut(
                 f"the env's own time limit ({limit} steps) ends episodes before the task's "
                 f"horizon ({horizon})"
@@ -248,7 +203,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._letter, self._done, self._ended = 0, True, False
         self._env_obs: Any = None
         self._env_info: dict[str, Any] = {}
-        self._shaping = _shaping(automaton, potential)
+        self._shaping = shaping_of(automaton, potential)
         self._reach = float(potential) if potential else 0.0
         self._distances: list[float | None] = []
 
@@ -494,6 +449,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         """Read the letter of the position ``reset`` (``reward`` None) or a step reached, with
         the moment where the labels read one, and or it into :attr:`held`."""
         moment = Moment(self._unwrapped, reward, terminated) if self._moment else NO_MOMENT
+        if self._function_unchecked:
+            self._function_unchecked = False
+            call_checked(self.labels, obs, info)
         if self._moment:
             if self._probe is not None:
                 self._check_labels(info, reset=reward is None)

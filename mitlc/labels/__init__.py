@@ -27,7 +27,9 @@ For a Dict observation, ``key`` names the part a form reads: beside ``obs``
 (``{obs: [1, 2], key: agent}``), inside the mapping of ``decoded``, ``box`` and ``disc``. A
 proposition may also be declared by a list of forms: it holds when any of them holds.
 
-A bad declaration raises :class:`LabelDeclarationError` naming the field's path, e.g.
+A callable that does not keep to that contract raises :class:`LabelFunctionError` (a
+``TypeError``; :mod:`mitlc.labels.function`). A bad declaration raises
+:class:`LabelDeclarationError` naming the field's path, e.g.
 ``labels.goal.obs: expected a list of integers``. Given the observation space, the forms are
 also checked against it (an index past a Box's length, a value outside a Discrete, radices that
 do not multiply to its size). Nothing here imports gymnasium: spaces are read by their
@@ -52,6 +54,7 @@ from mitlc.labels.forms import (
     letter_reader,
     undeclared,
 )
+from mitlc.labels.function import LabelFunctionError
 from mitlc.labels.values import Moment, Value
 
 __all__ = [
@@ -65,6 +68,7 @@ __all__ = [
     "InDisc",
     "LabelDeclarationError",
     "LabelFunction",
+    "LabelFunctionError",
     "Labeller",
     "Labels",
     "LetterReader",

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 from mitlc.errors import MitlcError
+from mitlc.labels.function import true_names
 from mitlc.labels.values import NO_MOMENT, AttrPath, InfoPath, Moment, Value
 
 LabelFunction = Callable[[Any, dict[str, Any]], Iterable[str]]
@@ -231,10 +232,12 @@ class CallableLetters:
     propositions: tuple[str, ...]
 
     def __call__(self, obs: Any, info: dict[str, Any], moment: Moment = NO_MOMENT) -> int:
-        """The letter of ``(obs, info)`` (a labelling function reads only those)."""
+        """The letter of ``(obs, info)`` (a labelling function reads only those); a
+        :class:`~mitlc.labels.function.LabelFunctionError` where the function returns no
+        iterable of names."""
         true = self.function(obs, info)
         if not isinstance(true, set | frozenset):
-            true = frozenset(true)
+            true = true_names(self.function, true)
         letter = 0
         for i, p in enumerate(self.propositions):
             if p in true:

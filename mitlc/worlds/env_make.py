@@ -13,7 +13,17 @@ as ``gymnasium.make("module:EnvId")`` does, and nothing else runs code.
   wraps the made env with each class in turn (before the task wrapper, which is outermost);
   each must be a subclass of ``gymnasium.Wrapper``, and its arguments YAML values.
 * Ids that make another env named in their arguments (shimmy's compatibility layers) and
-  mitlc's own ids (``mitlc/...``, made from world files, not named in one) are refused.
+  mitlc's own ids (``mitlc/...``, made from world files, not named in one) are refused; an own
+  id is refused before anything is imported.
+* **Nested ids.** An env whose entry point makes another env by an id in its arguments
+  (:data:`NESTED`: mitlc's ``make_task_env``, the entry point of ``mitlc/Task-v0``, reads
+  ``env_id`` and that env's ``env_kwargs``; a package may register an id of its own on it) has
+  that id, where the file gives it in ``env.kwargs``, checked as ``env.id`` is: ``module:EnvId``
+  only with an installed module's dotted name, imported here by the same rule (the argument then
+  holds the bare id, so that gymnasium imports nothing of its own), a registered id, not
+  mitlc's, not one that wraps another by name; and so on down ``env_kwargs``. mitlc's other
+  registered env, ``mitlc/Product-v0`` (:class:`mitlc.product.ProductEnv`), takes a world and an
+  automaton, objects no file can hold, and names no env.
 """
 
 from __future__ import annotations
@@ -25,7 +35,7 @@ import importlib.util
 import re
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 from mitlc.worlds.grid import FieldPath
@@ -37,6 +47,12 @@ WRAPPING = frozenset({"GymV21Environment-v0", "GymV26Environment-v0"})
 """Registered ids that make another environment named in their arguments (shimmy's
 compatibility layers, which read an old gym id, ``module:Class`` included): refused, so that a
 world file makes only what gymnasium registers."""
+
+NESTED: dict[str, tuple[str, str]] = {
+    "mitlc.gym.registration:make_task_env": ("env_id", "env_kwargs"),
+}
+"""Entry points (``module:name``) that make another env by id: the argument that names it and
+the argument that holds its own arguments."""
 
 MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
 """A module's dotted name."""
@@ -68,14 +84,19 @@ def reason(err: BaseException) -> str:
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
-def import_named(name: str, where: FieldPath) -> Any:
-    """The installed module ``name`` (dotted identifiers), imported; an :class:`EnvMakeError`
-    at ``where`` if the name is not a module name, is not installed or fails to import."""
+def check_module_name(name: object, where: FieldPath) -> None:
+    """An :class:`EnvMakeError` at ``where`` unless ``name`` is a module's dotted name."""
     if not isinstance(name, str) or not MODULE.match(name):
         message = (f"{name!r} is not a module's dotted name (such as minigrid or "
                    "highway_env): a world file imports installed packages by name, never a "
                    "file")  # fmt: skip
         raise EnvMakeError([(where, message)])
+
+
+def import_named(name: str, where: FieldPath) -> Any:
+    """The installed module ``name`` (dotted identifiers), imported; an :class:`EnvMakeError`
+    at ``where`` if the name is not a module name, is not installed or fails to import."""
+    check_module_name(name, where)
     try:
         with quiet():
             found = importlib.util.find_spec(name)
@@ -98,38 +119,92 @@ def make_env(settings: Env) -> Any:
     :class:`EnvMakeError` at the field at fault if it cannot be."""
     with quiet():
         import gymnasium
-    for i, module in enumerate(settings.imports):
-        import_named(module, ("env", "import", i))
-    env_id = settings.id
-    if ":" in env_id:
-        module, _, env_id = env_id.partition(":")
+    module, env_id = split_id(settings.id, ENV_ID)
+    for i, name in enumerate(settings.imports):
+        import_named(name, ("env", "import", i))
+    if module:
         import_named(module, ENV_ID)
-    _check_id(env_id, gymnasium.registry)
+    _check_id(env_id, gymnasium.registry, ENV_ID)
+    where: FieldPath = ("env", "kwargs")
+    kwargs = nested_ids(gymnasium.registry[env_id], settings.kwargs, where, gymnasium.registry)
     try:
         with quiet():
-            env = gymnasium.make(env_id, **settings.kwargs)
+            env = gymnasium.make(env_id, **kwargs)
     except Exception as err:  # the env's own constructor may raise anything
-        where: FieldPath = ("env", "kwargs") if settings.kwargs else ENV_ID
-        raise EnvMakeError([(where, f"{env_id} cannot be made: {reason(err)}")]) from None
+        at: FieldPath = where if settings.kwargs else ENV_ID
+        raise EnvMakeError([(at, f"{env_id} cannot be made: {reason(err)}")]) from None
     for i, entry in enumerate(settings.wrappers):
         env = _wrap(env, entry, ("env", "wrappers", i), gymnasium.Wrapper)
     return env
 
 
-def _check_id(env_id: str, registry: Any) -> None:
+def split_id(text: object, where: FieldPath) -> tuple[str, str]:
+    """``(module, id)`` of an env id, ``module:EnvId`` or a bare id (module ``""``), checked
+    before anything is imported: the module's dotted name, and an id that is not mitlc's."""
+    if not isinstance(text, str) or not text.strip():
+        message = f"expected a gymnasium environment id (e.g. FrozenLake-v1), got {text!r}"
+        raise EnvMakeError([(where, message)])
+    module, sep, env_id = text.partition(":")
+    if not sep:
+        module, env_id = "", text
+    else:
+        check_module_name(module, where)
+    _refuse_own(env_id, where)
+    return module, env_id
+
+
+def nested_ids(
+    spec: Any, kwargs: Mapping[str, Any], where: FieldPath, registry: Any
+) -> dict[str, Any]:
+    """``kwargs`` (at ``where``) of the registered env ``spec``, with the id of another env
+    that its entry point makes (:data:`NESTED`) checked as ``env.id`` is, its module imported by
+    name and the argument holding the bare id; the same down that env's own arguments."""
+    out = dict(kwargs)
+    names = NESTED.get(entry_point_name(spec.entry_point))
+    if names is None:
+        return out
+    id_name, kwargs_name = names
+    inner = spec.kwargs.get(id_name)  # the registering package's own choice, if any
+    if id_name in out:
+        at: FieldPath = (*where, id_name)
+        module, inner = split_id(out[id_name], at)
+        if module:
+            import_named(module, at)
+        _check_id(inner, registry, at)
+        out[id_name] = inner
+    more = out.get(kwargs_name)
+    inner_id = inner.rpartition(":")[2] if isinstance(inner, str) else None
+    if isinstance(more, Mapping) and inner_id in registry:
+        out[kwargs_name] = nested_ids(registry[inner_id], more, (*where, kwargs_name), registry)
+    return out
+
+
+def entry_point_name(entry_point: Any) -> str:
+    """A registered entry point as ``module:name`` (a callable's module and qualified name)."""
+    if isinstance(entry_point, str):
+        return entry_point
+    module = getattr(entry_point, "__module__", "")
+    return f"{module}:{getattr(entry_point, '__qualname__', '')}"
+
+
+def _refuse_own(env_id: str, where: FieldPath) -> None:
     if env_id.startswith("mitlc/"):
         message = (f"{env_id} is mitlc's own: a world file is the task, so name the env it "
                    "runs on")  # fmt: skip
-        raise EnvMakeError([(ENV_ID, message)])
+        raise EnvMakeError([(where, message)])
+
+
+def _check_id(env_id: str, registry: Any, where: FieldPath) -> None:
+    _refuse_own(env_id, where)
     if env_id not in registry:
         close = difflib.get_close_matches(env_id, sorted(registry), n=1, cutoff=0.7)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         if not close and "-v" in env_id:
             hint = "; if a package registers it, list it under env.import or write module:EnvId"
-        raise EnvMakeError([(ENV_ID, f"no gymnasium environment {env_id!r}{hint}")])
+        raise EnvMakeError([(where, f"no gymnasium environment {env_id!r}{hint}")])
     if env_id in WRAPPING:
         message = f"{env_id} makes another environment by name; name that environment's id"
-        raise EnvMakeError([(ENV_ID, message)])
+        raise EnvMakeError([(where, message)])
 
 
 def _wrap(env: Any, entry: WrapperEntry, where: FieldPath, base: type[Any]) -> Any:
