@@ -168,10 +168,12 @@ def render_command(
     from mitlc.automata import compile_formula
     from mitlc.automata.artifact import from_data
     from mitlc.automata.dot import render, to_dot
+    from mitlc.inputs import MAX_ARTIFACT_BYTES, read_capped
 
     if source is not None and source.endswith(".json"):
+        text = read_capped(source, MAX_ARTIFACT_BYTES, "an automaton artifact")  # or OSError
         try:
-            data = json.loads(Path(source).read_bytes())
+            data = json.loads(text)
         except json.JSONDecodeError as err:
             raise UsageError(f"{source}:{err.lineno}:{err.colno}: not JSON: {err.msg}") from None
         except RecursionError:
@@ -206,15 +208,10 @@ def monitor(
     """Print the three-valued verdict (satisfied, violated, pending) after each step of a trace."""
     from mitlc.automata import compile_formula
     from mitlc.automata.runs import run_states
-    from mitlc.traces import TraceError, read_trace, read_trace_text, trace_columns
+    from mitlc.traces import read_trace
 
     formula = load_formula(spec, None)
-    text = read_trace_text(trace)
-    columns = trace_columns(trace, text)
-    missing = sorted(set(atoms(formula)) - columns) if columns is not None else []
-    if missing:
-        raise TraceError(f"{trace}: no column for the spec's proposition(s) {', '.join(missing)}")
-    letters = read_trace(trace, text)
+    letters = read_trace(trace, propositions=atoms(formula))
     deadline = command_deadline(time_limit, "monitor")
     digital = compile_formula(formula, max_states=max_states, deadline=deadline).digital
     states = run_states(digital, letters)

@@ -4,6 +4,10 @@ CSV: a header row naming the propositions (a ``step`` or ``time`` column is igno
 row per step with ``1``/``0`` or ``true``/``false``. JSON Lines: one value per step, either an
 array of the true propositions (``["a"]``) or an object of truth values (``{"a": true}``).
 
+Both forms follow one rule: a header or a step names a proposition at most once, and, read for
+a spec (``propositions``), only the spec's propositions; a CSV trace, which declares its
+propositions in its header, must also have a column for each of the spec's.
+
 A trace is held to :data:`~mitlc.limits.MAX_TRACE_BYTES` (read no further),
 :data:`~mitlc.limits.MAX_TRACE_STEPS` and, for JSON Lines,
 :data:`~mitlc.limits.MAX_TRACE_JSON_DEPTH` (checked before a line is parsed); numbers are never
@@ -17,7 +21,7 @@ import io
 import json
 import operator
 import re
-from collections.abc import Iterator
+from collections.abc import Collection, Iterable, Iterator
 from itertools import accumulate, count
 from pathlib import Path
 
@@ -53,14 +57,18 @@ def read_trace_text(path: Path) -> str:
     return data.decode("utf-8-sig")
 
 
-def read_trace(path: Path, text: str | None = None) -> list[frozenset[str]]:
+def read_trace(
+    path: Path, text: str | None = None, propositions: Collection[str] | None = None
+) -> list[frozenset[str]]:
     """The letters of a trace file (JSON Lines when it ends in ``.jsonl``/``.json``, else CSV);
-    ``text`` is the file's text when it has been read already."""
+    ``text`` is the file's text when it has been read already. With ``propositions`` (a spec's),
+    the trace may name no other, and a CSV trace needs a column for each."""
     if text is None:
         text = read_trace_text(path)
+    known = None if propositions is None else frozenset(propositions)
     if path.suffix.lower() in _JSON_SUFFIXES:
-        return _read_jsonl(path, text)
-    return _read_csv(path, text)
+        return _read_jsonl(path, text, known)
+    return _read_csv(path, text, known)
 
 
 def trace_columns(path: Path, text: str) -> set[str] | None:
@@ -68,7 +76,37 @@ def trace_columns(path: Path, text: str) -> set[str] | None:
     if path.suffix.lower() in _JSON_SUFFIXES:
         return None
     header = next(_csv_rows(path, text), (1, []))[1]
-    return {name.strip() for name in header} - _IGNORED
+    return {name.strip() for name in header if not _ignored(name.strip())}
+
+
+def _ignored(name: str) -> bool:
+    """Whether the CSV column ``name`` is a step or time column, not a proposition."""
+    return name.lower() in _IGNORED
+
+
+def _check_names(
+    path: Path, line: int, names: Iterable[str], known: frozenset[str] | None, what: str
+) -> None:
+    """The rule of both forms: ``names`` (those of a header or a step, line ``line``) name each
+    proposition once, and only propositions in ``known`` (when given)."""
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise TraceError(f"{path}:{line}: {what} names {_shown(name)} twice")
+        seen.add(name)
+        if known is not None and name not in known:
+            listed = f"its propositions: {', '.join(sorted(known))}" if known else "it has none"
+            raise TraceError(
+                f"{path}:{line}: {_shown(name)} is not a proposition of the spec ({listed})"
+            )
+
+
+class _Pairs:
+    """A JSON object as its key-value pairs in order (a repeated key kept), never a step's
+    dict until the keys are checked."""
+
+    def __init__(self, pairs: list[tuple[str, object]]) -> None:
+        self.pairs = pairs
 
 
 class _Number:
@@ -79,7 +117,7 @@ def _number(_: str) -> _Number:
     return _Number()
 
 
-def _read_jsonl(path: Path, text: str) -> list[frozenset[str]]:
+def _read_jsonl(path: Path, text: str, known: frozenset[str] | None) -> list[frozenset[str]]:
     letters: list[frozenset[str]] = []
     for number, line in enumerate(text.split("\n"), start=1):
         if not line.strip():
@@ -92,19 +130,35 @@ def _read_jsonl(path: Path, text: str) -> list[frozenset[str]]:
                 "limit); a step is a list of true propositions or an object of true/false values"
             )
         try:
-            value = json.loads(line, parse_int=_number, parse_float=_number, parse_constant=_number)
+            value = json.loads(
+                line,
+                parse_int=_number,
+                parse_float=_number,
+                parse_constant=_number,
+                object_pairs_hook=_Pairs,
+            )
         except json.JSONDecodeError as err:
             raise TraceError(f"{path}:{number}: not JSON: {err.msg}") from None
-        if isinstance(value, list) and all(isinstance(v, str) for v in value):
-            letters.append(frozenset(value))
-        elif isinstance(value, dict) and all(isinstance(v, bool) for v in value.values()):
-            letters.append(frozenset(k for k, v in value.items() if v))
-        else:
-            raise TraceError(
-                f"{path}:{number}: expected a list of true propositions or an object of "
-                "true/false values"
-            )
+        letters.append(_json_step(path, number, value, known))
     return letters
+
+
+def _json_step(
+    path: Path, number: int, value: object, known: frozenset[str] | None
+) -> frozenset[str]:
+    """The true propositions of the JSON Lines step ``value`` on line ``number``."""
+    if isinstance(value, list) and all(isinstance(v, str) for v in value):
+        names, true = value, value
+    elif isinstance(value, _Pairs) and all(isinstance(v, bool) for _, v in value.pairs):
+        names = [k for k, _ in value.pairs]
+        true = [k for k, v in value.pairs if v]
+    else:
+        raise TraceError(
+            f"{path}:{number}: expected a list of true propositions or an object of "
+            "true/false values"
+        )
+    _check_names(path, number, names, known, "the step")
+    return frozenset(true)
 
 
 _STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"')
@@ -135,12 +189,13 @@ def _csv_rows(path: Path, text: str) -> Iterator[tuple[int, list[str]]]:
         yield reader.line_num, row
 
 
-def _read_csv(path: Path, text: str) -> list[frozenset[str]]:
+def _read_csv(path: Path, text: str, known: frozenset[str] | None) -> list[frozenset[str]]:
     rows = _csv_rows(path, text)
     first = next(rows, None)
     if first is None:
         raise TraceError(f"{path}: empty trace: expected a header row of propositions")
     header = [name.strip() for name in first[1]]
+    _check_header(path, first[0], header, known)
     letters: list[frozenset[str]] = []
     for number, row in rows:
         if not any(cell.strip() for cell in row):
@@ -152,7 +207,7 @@ def _read_csv(path: Path, text: str) -> list[frozenset[str]]:
         true = set()
         for name, cell in zip(header, row, strict=True):
             value = cell.strip().lower()
-            if name.lower() in _IGNORED:
+            if _ignored(name):
                 continue
             if value in _TRUE:
                 true.add(name)
@@ -162,6 +217,19 @@ def _read_csv(path: Path, text: str) -> list[frozenset[str]]:
                 )
         letters.append(frozenset(true))
     return letters
+
+
+def _check_header(path: Path, line: int, header: list[str], known: frozenset[str] | None) -> None:
+    """The header (ending on line ``line``) names each column once, a column for each of the
+    spec's propositions (``known``, when given), and no proposition the spec does not have."""
+    _check_names(path, line, header, None, "the header")
+    if known is None:
+        return
+    columns = [name for name in header if not _ignored(name)]
+    missing = sorted(known - set(columns))
+    if missing:
+        raise TraceError(f"{path}: no column for the spec's proposition(s) {', '.join(missing)}")
+    _check_names(path, line, columns, known, "the header")
 
 
 def _shown(text: str) -> str:

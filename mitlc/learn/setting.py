@@ -137,7 +137,7 @@ def read_config(directory: Path) -> tuple[dict[str, Any], TrainConfig]:
     """``config.json`` of a run: its raw data (``world`` and ``spec`` checked to be text) and
     the settings."""
     path = directory / CONFIG
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device there is refused by read_json, not waited on
         raise RunError(f"{directory}: not a run directory (no {CONFIG})")
     data = read_json(path)
     if not isinstance(data, dict):

@@ -11,7 +11,9 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from mitlc.inputs import MAX_METRICS_BYTES, read_lines_capped
 from mitlc.learn.plots.common import png_bytes
+from mitlc.sweep.spec import SweepError
 from mitlc.sweep.trial import TRIALS
 
 CURVE_REPS = 1000
@@ -62,15 +64,20 @@ def performance_profile(
 def _curve(directory: Path, trial_id: str) -> tuple[list[float], list[float]]:
     """A trial's logged (episodes, training success rate)."""
     path = directory / TRIALS / trial_id / "metrics.jsonl"
-    episodes, success = [], []
-    if path.is_file():
-        for line in path.read_text(encoding="utf-8").splitlines():
+    episodes: list[float] = []
+    success: list[float] = []
+    if not path.exists():
+        return episodes, success
+    try:
+        for line in read_lines_capped(path, MAX_METRICS_BYTES, "a run's metrics"):
             try:
-                row = json.loads(line)
+                row = json.loads(line.decode("utf-8"))
                 episodes.append(float(row["episodes"]))
                 success.append(float(row["success_rate"]))
             except (ValueError, KeyError, TypeError):
                 continue
+    except OSError as err:
+        raise SweepError(f"{path}: {err.strerror or err}") from None
     return episodes, success
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.sweep.spec import Sweep, SweepError, Trial
-from mitlc.sweep.trial import read_result, run_trial, trial_directory
+from mitlc.sweep.trial import read_record, read_result, run_trial, trial_directory
 
 SWEEP = "sweep.json"
 REPORT_EVERY = 2.0
@@ -77,7 +77,7 @@ def _record(out: Path, sweep: Sweep, resume: bool) -> None:
     if path.is_file():
         if not resume:
             raise SweepError(f"{out}: a sweep is already there (use --resume, or another --out)")
-        saved = json.loads(path.read_text(encoding="utf-8"))
+        saved = read_record(path)
         if saved.get("trials") != ids:
             raise SweepError(f"{out}: --resume with another sweep than the one there "
                              f"({saved.get('file')})")  # fmt: skip

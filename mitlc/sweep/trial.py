@@ -28,7 +28,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mitlc.sweep.spec import Trial
+from mitlc.inputs import MAX_RECORD_BYTES, read_capped
+from mitlc.sweep.spec import SweepError, Trial
 
 RESULT, TRIAL = "result.json", "trial.json"
 TRIALS = "trials"
@@ -41,12 +42,23 @@ def trial_directory(root: Path, trial: Trial) -> Path:
     return Path(root) / TRIALS / trial.trial_id
 
 
+def read_record(path: Path) -> Any:
+    """The JSON value in ``path``, a record of the sweep's directory, read within
+    :data:`~mitlc.inputs.MAX_RECORD_BYTES`: a :class:`SweepError` when it cannot be read (not a
+    regular file, too large), :class:`ValueError` when it is not UTF-8 JSON."""
+    try:
+        data = read_capped(path, MAX_RECORD_BYTES, "a sweep's record")
+    except OSError as err:
+        raise SweepError(f"{path}: {err.strerror or err}") from None
+    return json.loads(data.decode("utf-8"))
+
+
 def read_result(directory: Path) -> dict[str, Any] | None:
     """The trial's result, if it finished."""
     path = directory / RESULT
-    if not path.is_file():
+    if not path.exists():
         return None
-    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    data: dict[str, Any] = read_record(path)
     return data
 
 
@@ -62,7 +74,7 @@ def run_trial(
     from mitlc.learn.evaluation.evaluate import evaluate
     from mitlc.learn.run import train
     from mitlc.learn.rundir import checkpoint
-    from mitlc.learn.rundir.files import SUMMARY
+    from mitlc.learn.rundir.files import SUMMARY, read_json
     from mitlc.learn.setting import CONFIG
 
     directory = trial_directory(root, trial)
@@ -79,7 +91,7 @@ def run_trial(
             _clear(directory)
         train(trial.world, config, directory, resume=resume, progress=progress)
     evaluation = evaluate(directory, episodes=trial.eval_episodes, seed=trial.seed)
-    summary = json.loads((directory / SUMMARY).read_text(encoding="utf-8"))
+    summary = read_json(directory / SUMMARY)
     learned = evaluation.exact if evaluation.exact is not None else evaluation.success_rate
     optimum = evaluation.optimum
     value, kind = score(learned, optimum)

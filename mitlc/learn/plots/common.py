@@ -42,7 +42,7 @@ def read_metrics(directory: Path) -> Metrics:
     """The run's metrics; a last line cut short (a killed run) is left out. :class:`PlotError`
     when the file is missing or has no complete line, :class:`RunError` when a line is bad."""
     path = directory / METRICS
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device there is refused by read_metrics_rows
         raise PlotError(f"{directory}: no {METRICS} (not a run directory, or not started)")
     rows = [[row[name] for name in METRIC_FIELDS] for row in read_metrics_rows(path)]
     if not rows:

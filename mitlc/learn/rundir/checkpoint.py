@@ -36,12 +36,32 @@ import numpy as np
 from numpy.lib import format as npy
 
 from mitlc.files import write_atomically
-from mitlc.learn.rundir.files import RunError, decode, parse_json, read_bytes, read_text
+from mitlc.inputs import (
+    MAX_CHECKPOINT_BYTES,
+    MAX_RECORD_BYTES,
+    MAX_TENSOR_HEADER_BYTES,
+    MAX_ZIP_DIRECTORY_BYTES,
+    size_text,
+    too_large,
+)
+from mitlc.learn.rundir.files import (
+    RECORD,
+    RunError,
+    decode,
+    file_size,
+    parse_json,
+    read_bytes,
+    read_text,
+)
 
 INDEX, LEGACY = "checkpoint.json", "checkpoint.pkl"
 FORMAT, INDEX_FORMAT = "mitlc.checkpoint/1", "mitlc.checkpoint-index/1"
 NAME = re.compile(r"(checkpoint_([0-9]{12,})_steps)\.(json|npz|safetensors)")
 MARKERS = ("__ndarray__", "__tensor__", "__tuple__", "__items__")
+DATA = ("npz", "safetensors")
+"""The kinds of a checkpoint's files held to :data:`~mitlc.inputs.MAX_CHECKPOINT_BYTES`."""
+HELD = "a checkpoint's arrays and tensors"
+"""What :data:`~mitlc.inputs.MAX_CHECKPOINT_BYTES` bounds, as a refusal names it."""
 
 
 def stem(steps: int) -> str:
@@ -166,7 +186,7 @@ def exists(directory: Path) -> bool:
 def _index(directory: Path) -> tuple[int, dict[str, tuple[Path, str]]]:
     """The latest checkpoint's steps and files with their SHA-256 by kind, from the index."""
     path = directory / INDEX
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device there is refused by read_text, not waited on
         if (directory / LEGACY).exists():
             raise RunError(
                 f"{directory / LEGACY}: a checkpoint in the old pickle format, which mitlc no "
@@ -194,31 +214,84 @@ def _index(directory: Path) -> tuple[int, dict[str, tuple[Path, str]]]:
     return steps, found
 
 
-def _read_verified(path: Path, digest: str) -> bytes:
-    data = read_bytes(path)
+def _check_sizes(listed: dict[str, tuple[Path, str]]) -> None:
+    """Refuse, before reading any, a checkpoint whose ``.npz`` and ``.safetensors`` are larger
+    than :data:`~mitlc.inputs.MAX_CHECKPOINT_BYTES`, alone or together."""
+    sizes = {listed[kind][0]: file_size(listed[kind][0]) for kind in DATA if kind in listed}
+    for path, size in sizes.items():
+        if size > MAX_CHECKPOINT_BYTES:
+            raise RunError(f"{path}: {too_large(path, size, MAX_CHECKPOINT_BYTES, HELD).strerror}")
+    total = sum(sizes.values())
+    if total > MAX_CHECKPOINT_BYTES:
+        names = " and ".join(str(path) for path in sizes)
+        raise RunError(
+            f"{names}: {size_text(total)} together, larger than the "
+            f"{size_text(MAX_CHECKPOINT_BYTES)} {HELD} may hold"
+        )
+
+
+def _read_verified(path: Path, digest: str, kind: str) -> bytes:
+    """The bytes of the checkpoint file ``path`` (of ``kind``), within its cap, whose SHA-256
+    is ``digest``."""
+    limit, what = (MAX_CHECKPOINT_BYTES, HELD) if kind in DATA else (MAX_RECORD_BYTES, RECORD)
+    data = read_bytes(path, limit, what)
     if _sha256(data) != digest:
         raise RunError(f"{path}: damaged (its SHA-256 is not the one {INDEX} records)")
     return data
 
 
+def _zip_directory_size(data: bytes) -> int:
+    """The size of the zip directory of the archive ``data``, as :mod:`zipfile` finds it (its
+    end record, the zip64 one where there is one) before it builds an object per entry."""
+    end = getattr(zipfile, "_EndRecData")(io.BytesIO(data))  # noqa: B009 (private in typeshed)
+    if not end:
+        raise ValueError("not a zip archive (no end of central directory)")
+    return int(end[5])  # zipfile._ECD_SIZE
+
+
+def _check_members(archive: zipfile.ZipFile, stored: int) -> None:
+    """Every member of ``archive`` (``stored`` bytes in all) is stored, not compressed, and
+    together they declare no more bytes than the archive holds, so reading them allocates no
+    more than its size."""
+    declared = 0
+    for info in archive.infolist():
+        if info.compress_type != zipfile.ZIP_STORED or not info.filename.endswith(".npy"):
+            raise ValueError(f"unexpected member {info.filename!r}")
+        if info.file_size != info.compress_size:
+            raise ValueError(f"{info.filename}: declares {info.file_size} bytes, stores "
+                             f"{info.compress_size}")  # fmt: skip
+        declared += info.file_size
+    if declared > stored:
+        raise ValueError(f"its members declare {declared} bytes, the archive has {stored}")
+
+
+def _check_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+    """The ``.npy`` member ``info`` has a plain dtype and claims no more data than it holds."""
+    with archive.open(info) as member:
+        version = npy.read_magic(member)
+        read = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}
+        if version not in read:
+            raise ValueError(f"{info.filename}: unsupported .npy version {version}")
+        shape, _, dtype = read[version](member)
+        if dtype.hasobject or dtype.fields is not None:
+            raise ValueError(f"{info.filename}: not a plain dtype ({dtype})")
+        if int(np.prod(shape, dtype=object)) * dtype.itemsize > info.file_size:
+            raise ValueError(f"{info.filename}: claims more data than it holds")
+
+
 def _arrays(path: Path, data: bytes) -> dict[str, np.ndarray[Any, Any]]:
     """The arrays of an ``.npz`` (uncompressed members of plain dtypes whose headers claim no
-    more data than they hold)."""
+    more data than they hold, declaring no more than the archive holds, listed in a directory
+    within :data:`~mitlc.inputs.MAX_ZIP_DIRECTORY_BYTES`)."""
     try:
+        directory = _zip_directory_size(data)
+        if directory > MAX_ZIP_DIRECTORY_BYTES:
+            raise ValueError(f"a zip directory of {size_text(directory)}, larger than the "
+                             f"{size_text(MAX_ZIP_DIRECTORY_BYTES)} mitlc reads")  # fmt: skip
         with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            _check_members(archive, len(data))
             for info in archive.infolist():
-                if info.compress_type != zipfile.ZIP_STORED or not info.filename.endswith(".npy"):
-                    raise ValueError(f"unexpected member {info.filename!r}")
-                with archive.open(info) as member:
-                    version = npy.read_magic(member)
-                    read = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}
-                    if version not in read:
-                        raise ValueError(f"{info.filename}: unsupported .npy version {version}")
-                    shape, _, dtype = read[version](member)
-                    if dtype.hasobject or dtype.fields is not None:
-                        raise ValueError(f"{info.filename}: not a plain dtype ({dtype})")
-                    if int(np.prod(shape, dtype=object)) * dtype.itemsize > info.file_size:
-                        raise ValueError(f"{info.filename}: claims more data than it holds")
+                _check_header(archive, info)
             with np.load(io.BytesIO(data), allow_pickle=False) as npz:
                 return {key: npz[key] for key in npz.files}
     except Exception as err:  # any failure to parse these bytes is damage
@@ -226,6 +299,12 @@ def _arrays(path: Path, data: bytes) -> dict[str, np.ndarray[Any, Any]]:
 
 
 def _tensors(path: Path, data: bytes) -> dict[str, Any]:
+    header = int.from_bytes(data[:8], "little")
+    if header > MAX_TENSOR_HEADER_BYTES:
+        raise RunError(
+            f"{path}: not a valid .safetensors (a header of {size_text(header)}, larger than "
+            f"the {size_text(MAX_TENSOR_HEADER_BYTES)} mitlc reads)"
+        )
     try:
         from safetensors.torch import load as load_tensors
     except ImportError:
@@ -243,14 +322,18 @@ def load(directory: Path) -> Loaded:
     :class:`RunError` naming the file for anything missing, damaged or malformed."""
     steps, listed = _index(directory)
     files = {kind: path for kind, (path, _) in listed.items()}
-    blobs = {kind: _read_verified(path, digest) for kind, (path, digest) in listed.items()}
+    _check_sizes(listed)
+    blobs = {kind: _read_verified(path, digest, kind) for kind, (path, digest) in listed.items()}
     body = parse_json(decode(blobs["json"], files["json"]), files["json"])
     if not isinstance(body, dict) or body.get("format") != FORMAT or "state" not in body:
         raise RunError(f"{files['json']}: not a checkpoint (no format {FORMAT!r})")
     if body.get("steps") != steps:
         raise RunError(f"{files['json']}: holds steps {body.get('steps')!r}, the index {steps}")
-    arrays = _arrays(files["npz"], blobs["npz"]) if "npz" in blobs else {}
-    tensors = _tensors(files["safetensors"], blobs["safetensors"]) if "safetensors" in blobs else {}
+    # Each file's bytes are let go once decoded: at most both files and one decoded at once.
+    arrays = _arrays(files["npz"], blobs.pop("npz")) if "npz" in blobs else {}
+    tensors = (
+        _tensors(files["safetensors"], blobs.pop("safetensors")) if "safetensors" in blobs else {}
+    )
     try:
         state = _decode(body["state"], arrays, tensors)
     except (ValueError, TypeError, KeyError, RecursionError) as err:

@@ -23,6 +23,14 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.errors import MitlcError
+from mitlc.inputs import (
+    MAX_METRICS_BYTES,
+    MAX_RECORD_BYTES,
+    RefusedFile,
+    read_capped,
+    read_lines_capped,
+    regular_size,
+)
 
 LOCK = ".lock"
 METRICS, SUMMARY = "metrics.jsonl", "summary.json"
@@ -35,14 +43,34 @@ class RunError(MitlcError):
     """A run directory that cannot be used as asked: missing, foreign, damaged or in use."""
 
 
-def read_bytes(path: Path) -> bytes:
-    """The bytes of the regular file ``path`` (a device or a pipe is refused, not read)."""
+RECORD = "a run's JSON record"
+"""What :data:`~mitlc.inputs.MAX_RECORD_BYTES` bounds, as a refusal names it."""
+
+
+def _unreadable(path: Path, err: OSError) -> RunError:
+    """``err`` (reading ``path``) as a :class:`RunError` naming the file."""
+    if isinstance(err, RefusedFile):  # not a regular file, or larger than its cap
+        return RunError(f"{path}: {err.strerror}")
+    return RunError(f"{path}: cannot read ({err.strerror or err})")
+
+
+def read_bytes(path: Path, limit: int = MAX_RECORD_BYTES, what: str = RECORD) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them (``what`` names the
+    file's kind in the refusal): a device, a pipe or a larger file is refused, not read
+    (:func:`mitlc.inputs.read_capped`)."""
     try:
-        if not stat.S_ISREG(path.stat().st_mode):
-            raise RunError(f"{path}: not a regular file")
-        return path.read_bytes()
+        return read_capped(path, limit, what)
     except OSError as err:
-        raise RunError(f"{path}: cannot read ({err.strerror or err})") from None
+        raise _unreadable(path, err) from None
+
+
+def file_size(path: Path) -> int:
+    """The size of the regular file ``path``, without opening it (a :class:`RunError` when it is
+    missing or not a regular file)."""
+    try:
+        return regular_size(path)
+    except OSError as err:
+        raise _unreadable(path, err) from None
 
 
 def read_text(path: Path) -> str:
@@ -83,21 +111,23 @@ def _is_number(value: Any) -> bool:
 
 
 def read_metrics_rows(path: Path) -> list[dict[str, Any]]:
-    """The lines of ``metrics.jsonl`` in ``path``. A last line without its newline that does
-    not parse is a line cut short by a killed run, and is left out; any other bad line is a
+    """The lines of ``metrics.jsonl`` in ``path``, read one at a time, the file within
+    :data:`~mitlc.inputs.MAX_METRICS_BYTES`. A last line without its newline that does not
+    parse is a line cut short by a killed run, and is left out; any other bad line is a
     :class:`RunError` naming its number."""
-    pieces = read_bytes(path).split(b"\n")
     rows: list[dict[str, Any]] = []
-    for number, piece in enumerate(pieces, start=1):
-        last = number == len(pieces)
-        if last and not piece:
-            break
-        try:
-            rows.append(_metrics_row(piece, path, number))
-        except RunError:
-            if last:
-                break  # cut short when the run was killed: nothing after it counts
-            raise
+    try:
+        lines = read_lines_capped(path, MAX_METRICS_BYTES, "a run's metrics")
+        for number, line in enumerate(lines, start=1):
+            cut = not line.endswith(b"\n")
+            try:
+                rows.append(_metrics_row(line.removesuffix(b"\n"), path, number))
+            except RunError:
+                if cut:
+                    break  # cut short when the run was killed: nothing after it counts
+                raise
+    except OSError as err:
+        raise _unreadable(path, err) from None
     return rows
 
 
@@ -133,11 +163,25 @@ def _command() -> str:
     return " ".join([Path(parts[0]).name, *parts[1:]]) if parts else ""
 
 
+def _check_lock(path: Path) -> None:
+    """Refuse a lock file ``path`` that is there but not a regular file (a FIFO, a device, a
+    link), before it is opened."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as err:
+        raise RunError(f"{path}: cannot open the run's lock file ({err.strerror})") from None
+    if not stat.S_ISREG(mode):
+        raise RunError(f"{path}: not a regular file, so not a run's lock file; remove it")
+
+
 @contextmanager
 def locked(directory: Path) -> Iterator[None]:
     """Hold the run directory ``directory`` (which must exist) for the ``with`` block; a
     :class:`RunError` names the holder when another process has it."""
     path = directory / LOCK
+    _check_lock(path)
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
     except OSError as err:
