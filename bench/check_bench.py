@@ -9,11 +9,19 @@ solve (``pmax``), exports the product to DRN, and times Storm (stormpy: build fr
 ``Pmax=? [G !"violated"]``) on it in the same run. Small products are solved several times by
 both and the medians compared (the ``repeats`` column). Prints one table with the values and
 ratios.
+
+    .venv/bin/python bench/check_bench.py --memory --sizes 60,100,180 [--no-storm]
+
+measures memory instead: each size's whole check (``bench/check_one.py``) runs in a child
+process whose peak resident memory (``ru_maxrss``) is read, and Storm checks the same product,
+exported to DRN by another child, in a third (``bench/storm_one.py``). Prints grid, product
+states, transitions, seconds, peak MB and bytes per product state for both, and the ratios.
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
 import sys
 import tempfile
 import time
@@ -65,10 +73,60 @@ def storm_time(drn: str, prop: str, folder: Path) -> tuple[float, float]:
     return value, (time.perf_counter() - built, built - start)[0]
 
 
+def _child(*args: str) -> list[str]:
+    """The last line of a bench script run as a child process, split into fields."""
+    here = Path(__file__).resolve().parent
+    done = subprocess.run(
+        [sys.executable, str(here / args[0]), *args[1:]],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return done.stdout.strip().splitlines()[-1].split()
+
+
+def memory_table(sizes: list[int], storm: bool) -> None:
+    """Peak memory of mitlc's whole check and of Storm's, each in its own child process."""
+    header = (
+        f"{'grid':>7} {'states':>10} {'transitions':>11} {'mitlc s':>8} {'peak MB':>8} "
+        f"{'B/state':>7} {'storm s':>8} {'storm MB':>8} {'B/state':>7} {'s ratio':>7} "
+        f"{'MB ratio':>8} {'pmax':>9} {'storm pmax':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+    with tempfile.TemporaryDirectory() as folder:
+        for n in sizes:
+            _, states, _, transitions, seconds, value, _, peak = _child("check_one.py", str(n))
+            row = (
+                f"{n:>3}x{n:<3} {int(states):>10} {int(transitions):>11} {float(seconds):>8.1f} "
+                f"{float(peak):>8.0f} {float(peak) * 2**20 / int(states):>7.0f}"
+            )
+            if storm:
+                drn = str(Path(folder) / "product.drn")
+                _child("storm_one.py", "write", str(n), drn)
+                _, _, build, solve, theirs, storm_peak = _child("storm_one.py", "check", drn)
+                Path(drn).unlink()
+                storm_s = float(build) + float(solve)
+                row += (
+                    f" {storm_s:>8.1f} {float(storm_peak):>8.0f} "
+                    f"{float(storm_peak) * 2**20 / int(states):>7.0f} "
+                    f"{float(seconds) / storm_s:>7.2f} {float(peak) / float(storm_peak):>8.2f} "
+                    f"{float(value):>9.6f} {float(theirs):>10.6f}"
+                )
+            else:
+                row += f" {'-':>8} {'-':>8} {'-':>7} {'-':>7} {'-':>8} {float(value):>9.6f}"
+            print(row, flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="10,20,50,100")
+    parser.add_argument("--memory", action="store_true", help="peak memory, child processes")
+    parser.add_argument("--no-storm", action="store_true", help="--memory without Storm")
     args = parser.parse_args()
+    if args.memory:
+        memory_table([int(x) for x in args.sizes.split(",")], not args.no_storm)
+        return
     header = (
         f"{'grid':>7} {'states':>9} {'choices':>9} {'build s':>8} {'solve s':>8} "
         f"{'pmax':>9} {'storm s':>8} {'storm pmax':>10} {'solve/storm':>11} {'repeats':>7}"

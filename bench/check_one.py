@@ -1,13 +1,15 @@
 """One whole ``check`` (product, pmax, pmax_horizon) of an n x n benchmark world, for memory.
 
-    /usr/bin/time -v .venv/bin/python bench/check_one.py 70
+    .venv/bin/python bench/check_one.py 100
 
-Prints n, product states, seconds, pmax and pmax_horizon; ``time -v`` adds the peak memory.
-The world is ``bench/check_bench.py``'s.
+Prints n, product states, choices, transitions, seconds, pmax, pmax_horizon and this process's
+peak resident memory in MB (``ru_maxrss``; run it as a child process so that nothing else
+counts). The world is ``bench/check_bench.py``'s; no time limit, no product-size limit.
 """
 
 from __future__ import annotations
 
+import resource
 import sys
 import tempfile
 import time
@@ -31,9 +33,22 @@ def main() -> None:
         path.write_text(world_yaml(n), encoding="utf-8")
         world = load_world(path)
         start = time.perf_counter()
-        report = check(world, translate(parse(world.spec)))
+        report = check(
+            world, translate(parse(world.spec)), max_product_states=None, time_limit=None
+        )
         seconds = time.perf_counter() - start
-    print(n, report.product_states, f"{seconds:.1f}", report.pmax, report.pmax_horizon)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    p = report.product
+    print(
+        n,
+        p.num_states,
+        p.num_choices,
+        p.num_transitions,
+        f"{seconds:.1f}",
+        report.pmax,
+        report.pmax_horizon,
+        f"{peak:.0f}",
+    )
 
 
 if __name__ == "__main__":

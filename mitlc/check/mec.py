@@ -15,7 +15,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from mitlc.check.topo import spans, state_graph
+from mitlc.check.topo import choice_sources, spans, state_graph
 from mitlc.limits import Deadline
 from mitlc.product.explicit import VIOLATED, Product
 from mitlc.worlds.model import BoolArray, IntArray
@@ -23,7 +23,7 @@ from mitlc.worlds.model import BoolArray, IntArray
 
 def maximal_end_components(
     product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
-) -> tuple[IntArray, IntArray]:
+) -> tuple[IntArray, BoolArray]:
     """``(component, kept)``: each state's MEC label (``-1`` for none) and a mask of the choices
     that stay inside their MEC (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the
     caller has it). The first round splits the whole state graph; later rounds only the graph
@@ -32,14 +32,11 @@ def maximal_end_components(
     clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
     t = product.transitions
-    sources = np.repeat(np.arange(n), np.diff(product.choice_ptr))
+    sources = choice_sources(product)
     per_choice = np.diff(t.indptr)
     graph = state_graph(product) if graph is None else graph
     _, labels = connected_components(graph, directed=True, connection="strong")
-    leaves = np.repeat(labels[sources], per_choice) != labels[t.targets]
-    edge_choice = np.repeat(np.arange(product.num_choices), per_choice)
-    kept = np.bincount(edge_choice[leaves], minlength=product.num_choices) == 0
-    del leaves, edge_choice
+    kept = _staying(labels, sources, t.targets, t.indptr)
     alive = np.zeros(n, dtype=bool)
     alive[sources[kept]] = True
     chosen = np.flatnonzero(kept)
@@ -62,12 +59,25 @@ def maximal_end_components(
         chosen, alive = chosen[stay], new_alive
 
 
+def _staying(labels: IntArray, sources: IntArray, targets: IntArray, indptr: IntArray) -> BoolArray:
+    """Per choice, whether all its targets lie in its source's component (4 bytes a
+    transition of scratch; a choice without transitions stays)."""
+    per_choice = np.diff(indptr)
+    leaves = np.repeat(labels[sources], per_choice)
+    np.not_equal(leaves, labels[targets], out=leaves)
+    if not len(targets):
+        return np.ones(len(per_choice), dtype=bool)
+    starts = np.minimum(indptr[:-1], len(targets) - 1)
+    kept: BoolArray = (np.maximum.reduceat(leaves, starts) == 0) | (per_choice == 0)
+    return kept
+
+
 def accepting_states(
     product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
 ) -> BoolArray:
     """The states that lie in an accepting maximal end component (a boolean mask)."""
     labels, kept = maximal_end_components(product, graph, deadline=deadline)
-    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
+    sources = choice_sources(product)
     all_sets = (1 << product.num_sets) - 1
     chosen = np.flatnonzero(kept)
     covered = np.zeros(product.num_states, dtype=np.int64)

@@ -23,13 +23,15 @@ from dataclasses import dataclass
 from types import EllipsisType
 
 import numpy as np
-from scipy.sparse import csc_matrix, csr_matrix, identity
+from scipy.sparse import csr_matrix, identity
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
 from mitlc.check.topo import (
     backward_reachable,
+    choice_sources,
     gather,
+    into_choices,
     spans,
     state_graph,
     topological_values,
@@ -67,7 +69,7 @@ def _best(product: Product, q_values: FloatArray) -> tuple[FloatArray, IntArray]
     """Per state, the largest choice value and the first choice that attains it."""
     ptr = product.choice_ptr
     values = np.maximum.reduceat(q_values, ptr[:-1])
-    sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
+    sources = choice_sources(product)
     candidates = np.flatnonzero(q_values >= values[sources] - TOLERANCE)
     first = np.full(product.num_states, product.num_choices, dtype=np.int64)
     np.minimum.at(first, sources[candidates], candidates)
@@ -75,22 +77,22 @@ def _best(product: Product, q_values: FloatArray) -> tuple[FloatArray, IntArray]
 
 
 def _backward_search(
-    product: Product, into: csc_matrix, allowed: BoolArray, target: BoolArray
+    product: Product, allowed: BoolArray, target: BoolArray
 ) -> tuple[BoolArray, IntArray]:
     """Breadth-first search backwards from ``target`` along the ``allowed`` choices, a whole
-    frontier at a time (``into``: the choice matrix in compressed columns, so column ``y``
-    lists the choices that may reach ``y``). Returns the states found (``target`` included)
+    frontier at a time (:func:`mitlc.check.topo.into_choices` lists the choices that may
+    reach each state). Returns the states found (``target`` included)
     and, for each found state outside ``target``, a choice that may reach a state found one
     step earlier (the other states keep their first choice)."""
     ptr = product.choice_ptr
-    sources = np.repeat(np.arange(product.num_states), np.diff(ptr))
-    policy = ptr[:-1].copy()
+    sources = choice_sources(product)
+    policy = ptr[:-1].astype(np.int64)
     done = target.copy()
     frontier = np.flatnonzero(target)
     slot = np.zeros(product.num_states, dtype=np.int64)
-    into_ptr = into.indptr.astype(np.int64)
+    into_ptr, reaching = into_choices(product)
     while len(frontier):
-        choices = gather(into_ptr, into.indices, frontier)
+        choices = gather(into_ptr, reaching, frontier)
         choices = choices[allowed[choices]]
         states = sources[choices]
         new = ~done[states]
@@ -160,7 +162,6 @@ def max_reach(
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
     matrix = _choice_matrix(product)
-    into = matrix.tocsc()
     graph = state_graph(product) if graph is None else graph
     zero = ~backward_reachable(graph, target)
     values = topological_values(product, matrix, target, zero, graph, deadline=clock)
@@ -176,8 +177,10 @@ def max_reach(
         values = new
     # Among the optimal choices, one per state that makes progress towards the target, so that
     # no optimal choice loops forever away from it.
-    sources = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
-    _, policy = _backward_search(product, into, q_values >= values[sources] - 1e-9, target)
+    sources = choice_sources(product)
+    allowed = q_values >= values[sources] - 1e-9
+    del sources
+    _, policy = _backward_search(product, allowed, target)
     if sweeps == 1:
         # The topological values are already the Bellman fixpoint reached from below, and the
         # policy climbs to the target along optimal choices: nothing for policy iteration to do.
@@ -246,28 +249,13 @@ def pmax_horizon(
     or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
-    masks = 1 << product.num_sets
     n = product.num_states
     t = product.transitions
     ptr = product.choice_ptr
-    sources = np.repeat(np.arange(n), np.diff(ptr))
-    sizes = np.diff(t.indptr)
+    sources = choice_sources(product)
     jumps = np.flatnonzero(product.action < 0)
-    probs = np.where(np.repeat(product.action >= 0, sizes), t.probs, 0.0)
-    all_sets = masks - 1
-    matrices = [
-        csr_matrix(
-            (
-                probs,
-                t.targets + np.repeat(rules.saturate(mask, product.marks, all_sets) * n, sizes),
-                t.indptr,
-            ),
-            shape=(product.num_choices, masks * n),
-        )
-        for mask in range(masks)
-    ]
-    into = _choice_matrix(product).tocsc()
-    into_ptr = into.indptr.astype(np.int64)
+    matrices = _mask_matrices(product)
+    into_ptr, into_indices = into_choices(product)
     jump_sources = sources[jumps]
     jump_targets = t.targets[t.indptr[jumps]]
     fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
@@ -297,7 +285,7 @@ def pmax_horizon(
         table[:, columns] = raw[:, columns]
         _settle(table, jump_sources, jump_targets)
         changed = columns[(table[:, columns] != before).any(axis=0)]
-        dirty = _distinct(sources[gather(into_ptr, into.indices, changed)], slot)
+        dirty = _distinct(sources[gather(into_ptr, into_indices, changed)], slot)
         if keep_history:
             history.append(table.copy())
         if not len(changed):  # a fixpoint: every later step gives this table again
@@ -309,6 +297,35 @@ def pmax_horizon(
     if not keep_history:
         history = [table]
     return start_average(product, table[0]), history
+
+
+def _mask_matrices(product: Product) -> list[csr_matrix]:
+    """Per mask of sets seen, the world choices' rows (jumps zeroed) over the table of all
+    masks' values: choice ``c`` reads the mask ``mask | marks[c]``. With one mask (no sets) the
+    rows share the product's targets, and its probabilities too when there are no jumps."""
+    masks = 1 << product.num_sets
+    n = product.num_states
+    t = product.transitions
+    sizes = np.diff(t.indptr)
+    if (product.action < 0).any():
+        probs = np.where(np.repeat(product.action >= 0, sizes), t.probs, 0.0)
+    else:
+        probs = t.probs
+    shape = (product.num_choices, masks * n)
+    if masks == 1:
+        return [csr_matrix((probs, t.targets, t.indptr), shape=shape)]
+    all_sets = masks - 1
+    return [
+        csr_matrix(
+            (
+                probs,
+                t.targets + np.repeat(rules.saturate(mask, product.marks, all_sets) * n, sizes),
+                t.indptr,
+            ),
+            shape=shape,
+        )
+        for mask in range(masks)
+    ]
 
 
 def _ends(product: Product) -> FloatArray:

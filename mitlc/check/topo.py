@@ -28,13 +28,34 @@ TOLERANCE = 1e-14
 def state_graph(product: Product) -> csr_matrix:
     """The product's state graph (``x -> y`` when some choice of ``x`` may reach ``y``) in
     compressed rows, read off the choice rows; each edge once (scipy 1.17's strongly connected
-    components do not terminate on duplicate edges)."""
+    components do not terminate on duplicate edges). Duplicates are merged on a one-byte
+    pattern (sorted in place), so the transient memory is 5 bytes a transition."""
     t = product.transitions
     n = product.num_states
     indptr = t.indptr[product.choice_ptr]
-    graph = csr_matrix((np.ones(len(t.targets)), t.targets.copy(), indptr), shape=(n, n))
+    pattern = np.ones(len(t.targets), dtype=np.int8)
+    graph = csr_matrix((pattern, t.targets.copy(), indptr), shape=(n, n))
     graph.sum_duplicates()
+    graph.data = np.ones(graph.nnz)
     return graph
+
+
+def choice_sources(product: Product) -> IntArray:
+    """The state of every choice (32-bit)."""
+    counts = np.diff(product.choice_ptr)
+    sources: IntArray = np.repeat(np.arange(product.num_states, dtype=np.int32), counts)
+    return sources
+
+
+def into_choices(product: Product) -> tuple[IntArray, IntArray]:
+    """``(ptr, choices)``: the choices that may reach state ``y`` are
+    ``choices[ptr[y]:ptr[y+1]]`` (the choice matrix's pattern in compressed columns, made from
+    a one-byte pattern: about 5 bytes a transition)."""
+    t = product.transitions
+    pattern = np.ones(len(t.targets), dtype=np.int8)
+    shape = (product.num_choices, product.num_states)
+    into = csr_matrix((pattern, t.targets, t.indptr), shape=shape).tocsc()
+    return into.indptr.astype(np.int64), into.indices
 
 
 def backward_reachable(graph: csr_matrix, target: BoolArray) -> BoolArray:
@@ -144,40 +165,29 @@ def _solve_layers(
 ) -> FloatArray:
     """The values, layer by layer from the sinks; ``order[ptr[d]:ptr[d+1]]`` are layer ``d``'s
     states and ``size`` each state's component size."""
-    n = product.num_states
     t = product.transitions
     per_state = np.diff(product.choice_ptr)
     if (per_state[order] == 0).any():
         raise ValueError("a product state without choices")
-    edge_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
-    loops = t.targets == np.repeat(np.arange(n), per_state)[edge_choice]
-    stays = np.bincount(edge_choice[loops], weights=t.probs[loops], minlength=product.num_choices)
-    del edge_choice
-    # The choices in layer order (each state's choices together), with self-loops left out.
-    choices = spans(product.choice_ptr, order)
-    away = csr_matrix((np.where(loops, 0.0, t.probs), t.targets, t.indptr), shape=matrix.shape)
-    del loops
-    away = away[choices]
-    # Each layer's rows by hand (every row has an entry): scipy's slicing costs more than the
-    # product itself in the many small layers.
-    row_ptr, columns, probs = away.indptr.astype(np.int64), away.indices, away.data
-    del away
-    leaving = stays[choices] < 1.0 - 1e-15
-    denominator = np.where(leaving, 1.0 - stays[choices], 1.0)
-    counts = per_state[order]
-    state_start = np.concatenate([[0], np.cumsum(counts)])
+    stays, leaving = _self_loops(product)
+    denominator = np.where(leaving, 1.0 - stays, 1.0)
+    del stays
+    # A state's own value is 0 until its layer is solved, so its self-loops add nothing to the
+    # sums below: each layer reads the product's rows where they are, nothing is copied.
     values = target.astype(np.float64)
     fixed = target | zero
     single = size == 1
     for depth in range(len(ptr) - 1):
         deadline.check_now()
-        lo, hi = int(ptr[depth]), int(ptr[depth + 1])
-        states = order[lo:hi]
-        a, b = int(state_start[lo]), int(state_start[hi])
-        s, e = int(row_ptr[a]), int(row_ptr[b])
-        q_values = np.add.reduceat(probs[s:e] * values[columns[s:e]], row_ptr[a:b] - s)
-        q_values = np.where(leaving[a:b], q_values / denominator[a:b], -1.0)
-        best = np.maximum.reduceat(q_values, state_start[lo:hi] - a)
+        states = order[int(ptr[depth]) : int(ptr[depth + 1])]
+        choices = spans(product.choice_ptr, states)
+        edges = spans(t.indptr, choices)
+        counts = t.indptr[choices + 1] - t.indptr[choices]
+        starts = np.cumsum(counts) - counts
+        q_values = np.add.reduceat(t.probs[edges] * values[t.targets[edges]], starts)
+        q_values = np.where(leaving[choices], q_values / denominator[choices], -1.0)
+        state_starts = np.cumsum(per_state[states]) - per_state[states]
+        best = np.maximum.reduceat(q_values, state_starts)
         if single[states].all():
             update = ~fixed[states]
             values[states[update]] = np.maximum(best[update], 0.0)
@@ -186,6 +196,19 @@ def _solve_layers(
             values[states[alone]] = np.maximum(best[alone], 0.0)
             _solve_components(matrix, states[~single[states]], product, values, fixed, deadline)
     return values
+
+
+def _self_loops(product: Product) -> tuple[FloatArray, BoolArray]:
+    """Per choice, the probability of staying in its state (a choice's targets are distinct,
+    so one transition at most) and whether it may leave (at least 1e-15 of leaving)."""
+    t = product.transitions
+    per_choice = np.diff(t.indptr)
+    loops = np.flatnonzero(t.targets == np.repeat(choice_sources(product), per_choice))
+    owner = np.searchsorted(t.indptr, loops, side="right") - 1
+    stays = np.zeros(product.num_choices)
+    stays[owner] = t.probs[loops]
+    leaving: BoolArray = stays < 1.0 - 1e-15
+    return stays, leaving
 
 
 def _solve_components(

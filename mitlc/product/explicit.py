@@ -25,9 +25,8 @@ million cells.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from types import EllipsisType
-from typing import Any
 
 import numpy as np
 
@@ -48,6 +47,10 @@ class Product:
     State ``x`` has the choices ``choice_ptr[x] .. choice_ptr[x+1]-1``; choice ``c`` leads to
     ``transitions.row(c)``, is world action ``action[c]`` (or, when negative, the epsilon jump
     to automaton state ``-1 - action[c]``) and is in the acceptance sets ``marks[c]``.
+
+    As :func:`build_product` makes it, the arrays per choice and per transition hold 32-bit
+    integers (``np.int32``) wherever the indices fit, and the probabilities 64-bit floats: about
+    12 bytes a transition and 12 a choice. The solvers read them in place (scipy shares them).
     """
 
     world_state: IntArray
@@ -221,196 +224,52 @@ def build_product(
         "the product build"
     )
     monitor = TaskMonitor(automaton, world.rewards)
-    return _Builder(world, monitor, clock, max_product_states).build()
+    if isinstance(automaton, DigitalAutomaton):
+        states, transitions = estimate(world, automaton)
+        clock.reserve(product_bytes(states, transitions), "the product's arrays")
+    return _build(world, monitor, clock, max_product_states)
 
 
-class _Builder:
-    """Breadth-first exploration, one frontier (all states of a level) at a time in numpy.
+def product_bytes(states: int, transitions: int) -> int:
+    """About the bytes of a product of ``states`` and ``transitions`` as built (12 a transition,
+    its choices and states besides; a grid world has about 2.5 transitions a choice)."""
+    from mitlc.product.builder import BYTES_PER_CHOICE, BYTES_PER_STATE, BYTES_PER_TRANSITION
 
-    A pair ``(s, q)`` is coded ``q * S + s``, so the table of ids grows with the automaton
-    states the monitor makes; the automaton's steps, verdicts and jumps are the monitor's."""
+    per_transition = BYTES_PER_TRANSITION + BYTES_PER_CHOICE // 2
+    return states * BYTES_PER_STATE + transitions * per_transition
 
-    def __init__(
-        self, world: World, monitor: TaskMonitor, deadline: Deadline, limit: int | None
-    ) -> None:
-        self.world, self.monitor, self.deadline, self.limit = world, monitor, deadline, limit
-        self.letters = automaton_letters(world, monitor.propositions)
-        self.num_s = world.num_states
-        self.ids = np.full(0, -1, dtype=np.int64)
-        self.codes: list[IntArray] = [np.array([-1, -1], dtype=np.int64)]
-        self.count = 2
 
-    def intern(self, codes: IntArray) -> tuple[IntArray, IntArray]:
-        """Product ids of ``q * S + s`` codes (new ones numbered in order of first
-        appearance), and the new states' ids."""
-        kind = self.monitor.verdicts(codes // self.num_s)
-        out = np.where(kind == rules.VIOLATED, VIOLATED, SATISFIED).astype(np.int64)
-        pending = kind == rules.PENDING
-        if len(codes) and int(codes.max()) >= len(self.ids):
-            grown = np.full(max(int(codes.max()) + 1, 2 * len(self.ids)), -1, dtype=np.int64)
-            grown[: len(self.ids)] = self.ids
-            self.ids = grown
-        fresh = codes[pending][self.ids[codes[pending]] < 0]
-        unique, first = np.unique(fresh, return_index=True)
-        new_codes = unique[np.argsort(first, kind="stable")]
-        if self.limit is not None and self.count + len(new_codes) > self.limit:
-            raise _too_large(
-                f"the product of {self.num_s:,} world states and its task grows past "
-                f"{self.limit:,} states",
-                self.limit,
-            )
-        new_ids = np.arange(self.count, self.count + len(new_codes), dtype=np.int64)
-        self.ids[new_codes] = new_ids
-        self.codes.append(new_codes)
-        self.count += len(new_codes)
-        out[pending] = self.ids[codes[pending]]
-        return out, new_ids
+def _build(world: World, monitor: TaskMonitor, clock: Deadline, limit: int | None) -> Product:
+    """The product explored by :class:`mitlc.product.builder.Builder`, assembled."""
+    from mitlc.product.builder import Builder
 
-    def jumps(self, q: IntArray) -> tuple[IntArray, IntArray, IntArray]:
-        """For each entry of ``q``: how many epsilon jumps it has, their targets and their
-        ranks in the monitor's order of the state's jumps (all of them, entry after entry);
-        the monitor is asked once per distinct state."""
-        counts = self.monitor.jump_counts(q)
-        none = np.zeros(0, dtype=np.int64)
-        if not counts.any():
-            return counts, none, none
-        distinct, inverse = np.unique(q, return_inverse=True)
-        lists = [self.monitor.jumps(state) for state in distinct.tolist()]
-        sizes = np.array([len(targets) for targets in lists], dtype=np.int64)
-        counts = sizes[inverse]
-        if not sizes.any():
-            return counts, none, none
-        flat = np.array([t for targets in lists for t in targets], dtype=np.int64)
-        start = np.cumsum(sizes) - sizes
-        owner = np.repeat(np.arange(len(q)), counts)
-        rank = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
-        targets: IntArray = flat[start[inverse[owner]] + rank]
-        return counts, targets, rank
-
-    def build(self) -> Product:
-        world, num_s, monitor = self.world, self.num_s, self.monitor
-        all_sets = monitor.all_sets
-        # choices: (state, order key, action, marks); edges: (choice, target, probability)
-        c_state = [np.array([VIOLATED, SATISFIED])]
-        c_key = [np.zeros(2, dtype=np.int64)]
-        c_action = [np.zeros(2, dtype=np.int64)]
-        c_marks = [np.array([0, all_sets], dtype=np.int64)]
-        e_choice = [np.array([0, 1])]
-        e_target = [np.array([VIOLATED, SATISFIED])]
-        e_prob = [np.ones(2)]
-        num_choices = 2
-        starts = start_distribution(world)
-        q0 = monitor.reset().q
-        initial, frontier = self.intern(q0 * num_s + np.array([s for s, _ in starts]))
-        codes = self.codes[-1]
-        while len(frontier):
-            self.deadline.check_now()
-            s, q = codes % num_s, codes // num_s
-            q_next, marks = monitor.successors(q, self.letters[s])
-            batches: list[tuple[int, Any, Any, Any, Any, Any, IntArray | None]] = []
-            for a in range(world.num_actions):
-                rows = s * world.num_actions + a
-                lo, hi = world.transitions.indptr[rows], world.transitions.indptr[rows + 1]
-                counts = hi - lo
-                index = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-                targets = np.repeat(q_next, counts) * num_s + world.transitions.targets[index]
-                batches.append(
-                    (
-                        a,
-                        np.arange(len(frontier)),
-                        counts,
-                        targets,
-                        world.transitions.probs[index],
-                        marks,
-                        None,
-                    )
-                )
-            jump_counts, jump_targets, jump_ranks = self.jumps(q)
-            if jump_counts.any():
-                owner = np.repeat(np.arange(len(frontier)), jump_counts)
-                batches.append(
-                    (
-                        -1,
-                        owner,
-                        np.ones(len(owner), dtype=np.int64),
-                        jump_targets * num_s + s[owner],
-                        np.ones(len(owner)),
-                        np.zeros(len(owner), dtype=np.int64),
-                        jump_ranks,
-                    )
-                )
-            new_frontier, level_start = [], len(self.codes)
-            for a, owner, counts, targets, probs, choice_marks, ranks in batches:
-                ids, new = self.intern(targets)
-                new_frontier.append(new)
-                n = len(owner)
-                choice_ids = np.arange(num_choices, num_choices + n)
-                c_state.append(frontier[owner])
-                c_marks.append(choice_marks[owner] if a >= 0 else choice_marks)
-                if a >= 0:
-                    c_key.append(np.full(n, a, dtype=np.int64))
-                    c_action.append(np.full(n, a, dtype=np.int64))
-                else:  # jumps after the world actions, in the monitor's order
-                    assert ranks is not None
-                    c_key.append(world.num_actions + ranks)
-                    c_action.append(-1 - targets // num_s)
-                e_choice.append(np.repeat(choice_ids, counts))
-                e_target.append(ids)
-                e_prob.append(probs)
-                num_choices += n
-            frontier = np.concatenate(new_frontier)
-            # The new states' ids are consecutive, in the order their codes were appended.
-            codes = np.concatenate(self.codes[level_start:])
-        product = self._assemble(
-            initial[0], c_state, c_key, c_action, c_marks, e_choice, e_target, e_prob
-        )
-        merged: dict[int, float] = {}
-        for x, (_, p) in zip(initial.tolist(), starts, strict=True):
-            merged[x] = merged.get(x, 0.0) + p
-        distribution = tuple(merged.items())
-        return replace(product, initial_distribution=distribution)
-
-    def _assemble(
-        self,
-        initial: np.int64,
-        c_state: list[IntArray],
-        c_key: list[IntArray],
-        c_action: list[IntArray],
-        c_marks: list[IntArray],
-        e_choice: list[IntArray],
-        e_target: list[IntArray],
-        e_prob: list[FloatArray],
-    ) -> Product:
-        """Choices sorted by state, then action (jumps last, in the order of the automaton
-        state's jumps: the wrapper's jump actions); duplicate targets of a choice summed;
-        targets sorted within each choice."""
-        state, key = np.concatenate(c_state), np.concatenate(c_key)
-        order = np.lexsort((key, state))
-        rank = np.empty_like(order)
-        rank[order] = np.arange(len(order))
-        choice = rank[np.concatenate(e_choice)]
-        target = np.concatenate(e_target)
-        n = self.count
-        combined = choice * n + target
-        unique, inverse = np.unique(combined, return_inverse=True)
-        probs = np.zeros(len(unique))
-        np.add.at(probs, inverse, np.concatenate(e_prob))
-        edge_choice = unique // n
-        indptr = np.searchsorted(edge_choice, np.arange(len(order) + 1))
-        sorted_state = state[order]
-        codes = np.concatenate(self.codes)
-        world_state = np.where(codes >= 0, codes % self.num_s, -1)
-        automaton_state = np.where(codes >= 0, codes // self.num_s, -1)
-        end = self.monitor.ends(np.maximum(automaton_state, 0))
-        end[VIOLATED], end[SATISFIED] = False, True
-        return Product(
-            world_state=world_state.astype(np.int64),
-            automaton_state=automaton_state.astype(np.int64),
-            initial=int(initial),
-            choice_ptr=np.searchsorted(sorted_state, np.arange(n + 1)).astype(np.int64),
-            action=np.concatenate(c_action)[order],
-            marks=np.concatenate(c_marks)[order],
-            transitions=Sparse(indptr.astype(np.int64), (unique % n).astype(np.int64), probs),
-            num_sets=self.monitor.num_sets,
-            end=end,
-        )
+    builder = Builder(world, monitor, automaton_letters(world, monitor.propositions), clock, limit)
+    starts = start_distribution(world)
+    q0 = monitor.reset().q
+    initial = builder.build(q0 * world.num_states + np.array([s for s, _ in starts]))
+    codes = builder.codes.finish()
+    num_s = world.num_states
+    world_state = np.where(codes >= 0, codes % num_s, -1)
+    automaton_state = np.where(codes >= 0, codes // num_s, -1)
+    del codes
+    end = monitor.ends(np.maximum(automaton_state, 0))
+    end[VIOLATED], end[SATISFIED] = False, True
+    merged: dict[int, float] = {}
+    for x, (_, p) in zip(initial.tolist(), starts, strict=True):
+        merged[x] = merged.get(x, 0.0) + p
+    indptr = builder.indptr.finish()
+    targets = builder.targets.finish()
+    if indptr.dtype != targets.dtype:  # scipy shares the arrays only when both agree
+        indptr, targets = indptr.astype(np.int64), targets.astype(np.int64)
+    return Product(
+        world_state=world_state,
+        automaton_state=automaton_state,
+        initial=int(initial[0]),
+        choice_ptr=builder.choice_ptr.finish(),
+        action=builder.action.finish(),
+        marks=builder.marks.finish(),
+        transitions=Sparse(indptr, targets, builder.probs.finish()),
+        num_sets=monitor.num_sets,
+        initial_distribution=tuple(merged.items()),
+        end=end,
+    )

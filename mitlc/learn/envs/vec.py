@@ -128,9 +128,10 @@ def tables(product: Product, world: World) -> Tables:
         choice=choice,
         valid=choice >= 0,
         cumulative=_cumulative(product.transitions),
-        indptr=product.transitions.indptr,
-        targets=product.transitions.targets,
-        marks=product.marks,
+        # the product keeps 32-bit indices; the episodes' states are 64-bit (checkpoints)
+        indptr=product.transitions.indptr.astype(np.int64),
+        targets=product.transitions.targets.astype(np.int64),
+        marks=product.marks.astype(np.int64),
         moves=(product.action >= 0) & (product.action != stay),
         world_state=product.world_state,
         automaton_state=product.automaton_state,
