@@ -6,8 +6,11 @@ than it, so the first look stops the work, with the message a real run would end
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -26,13 +29,27 @@ EXPLOSIVE = "F[0,1000] G[0,1000] a"  # about a million states of hundreds of ato
 
 def _mitlc(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     """The command in a process of its own (the watchdog ends the process it runs in)."""
-    return subprocess.run(
-        [sys.executable, "-m", "mitlc", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        cwd=ROOT,
-    )
+    return _run_measured([sys.executable, "-m", "mitlc", *args], timeout)[0]
+
+
+def _run_measured(
+    argv: list[str], timeout: float
+) -> tuple[subprocess.CompletedProcess[str], float]:
+    """Run ``argv``; its result and its own peak resident size in GB (``os.wait4`` reaps it
+    with its resource usage, which ``RUSAGE_CHILDREN`` would mix with every other child's)."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        child = subprocess.Popen(argv, stdout=out, stderr=err, text=True, cwd=ROOT)
+        timer = threading.Timer(timeout, child.kill)
+        timer.start()
+        try:
+            _, status, usage = os.wait4(child.pid, 0)
+        finally:
+            timer.cancel()
+        child.returncode = os.waitstatus_to_exitcode(status)  # reaped here, not by Popen
+        out.seek(0)
+        err.seek(0)
+        done = subprocess.CompletedProcess(argv, child.returncode, out.read(), err.read())
+    return done, usage.ru_maxrss * 1024 / GB
 
 
 def _one_line(stderr: str) -> str:
@@ -53,12 +70,6 @@ def test_every_command_takes_a_memory_limit() -> None:
     assert not missing, f"commands without --memory-limit: {missing}"
 
 
-def _peak_gb() -> float:
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024 / GB
-
-
 @pytest.mark.parametrize(
     ("command", "stage"),
     [
@@ -71,14 +82,16 @@ def test_an_explosive_formula_stops_at_the_memory_limit(
 ) -> None:
     # 0.1 GB: above what a command holds when it starts, so the formula's own growth (about
     # 20 MB a second) reaches it; the library's check stops it, not the watchdog.
-    done = _mitlc(*command, "--memory-limit", "0.1")
+    done, peak = _run_measured(
+        [sys.executable, "-m", "mitlc", *command, "--memory-limit", "0.1"], 120
+    )
     assert done.returncode == 1
     line = done.stderr.splitlines()[-1]
     assert "Traceback" not in done.stderr
     assert f"mitlc {command[0]} stopped at the memory limit of 0.1 GB" in line, line
     assert f"during {stage}" in line
     assert "--memory-limit GB (0 for none)" in line
-    assert _peak_gb() < 0.1 * 1.1
+    assert 0.05 < peak < 0.1 * 1.1, peak  # it grew to the limit, and no further
 
 
 def test_a_command_that_starts_past_its_limit_stops_at_once() -> None:
