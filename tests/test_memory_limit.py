@@ -10,7 +10,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -29,27 +28,45 @@ EXPLOSIVE = "F[0,1000] G[0,1000] a"  # about a million states of hundreds of ato
 
 def _mitlc(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     """The command in a process of its own (the watchdog ends the process it runs in)."""
-    return _run_measured([sys.executable, "-m", "mitlc", *args], timeout)[0]
+    return subprocess.run(
+        [sys.executable, "-m", "mitlc", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+    )
+
+
+PEAK_SCRIPT = """
+import atexit, os, sys
+
+def peak():  # the high-water mark of this process's own memory, set anew at exec
+    with open("/proc/self/status") as status, open(os.environ["PEAK_FILE"], "w") as out:
+        out.write(next(line.split()[1] for line in status if line.startswith("VmHWM")))
+
+atexit.register(peak)
+sys.argv = ["mitlc", *sys.argv[1:]]
+from mitlc.cli import main
+main()
+"""
 
 
 def _run_measured(
-    argv: list[str], timeout: float
+    args: list[str], timeout: float
 ) -> tuple[subprocess.CompletedProcess[str], float]:
-    """Run ``argv``; its result and its own peak resident size in GB (``os.wait4`` reaps it
-    with its resource usage, which ``RUSAGE_CHILDREN`` would mix with every other child's)."""
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        child = subprocess.Popen(argv, stdout=out, stderr=err, text=True, cwd=ROOT)
-        timer = threading.Timer(timeout, child.kill)
-        timer.start()
-        try:
-            _, status, usage = os.wait4(child.pid, 0)
-        finally:
-            timer.cancel()
-        child.returncode = os.waitstatus_to_exitcode(status)  # reaped here, not by Popen
-        out.seek(0)
-        err.seek(0)
-        done = subprocess.CompletedProcess(argv, child.returncode, out.read(), err.read())
-    return done, usage.ru_maxrss * 1024 / GB
+    """Run ``mitlc ARGS``; its result and the peak resident size of its own process in GB
+    (the kernel's ``VmHWM`` at exit: ``ru_maxrss`` would count the memory of the test process
+    it was forked from)."""
+    with tempfile.NamedTemporaryFile("r") as peak:
+        done = subprocess.run(
+            [sys.executable, "-c", PEAK_SCRIPT, *args],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=ROOT,
+            env={**os.environ, "PEAK_FILE": peak.name},
+        )
+        return done, int(peak.read() or 0) * 1024 / GB
 
 
 def _one_line(stderr: str) -> str:
@@ -82,9 +99,7 @@ def test_an_explosive_formula_stops_at_the_memory_limit(
 ) -> None:
     # 0.1 GB: above what a command holds when it starts, so the formula's own growth (about
     # 20 MB a second) reaches it; the library's check stops it, not the watchdog.
-    done, peak = _run_measured(
-        [sys.executable, "-m", "mitlc", *command, "--memory-limit", "0.1"], 120
-    )
+    done, peak = _run_measured([*command, "--memory-limit", "0.1"], 120)
     assert done.returncode == 1
     line = done.stderr.splitlines()[-1]
     assert "Traceback" not in done.stderr
