@@ -28,7 +28,7 @@ from mitlc.limits import (
     DEFAULT_MEMORY_LIMIT,
     GB,
     gigabytes,
-    memory_limit,
+    memory_setting,
     resident_bytes,
     set_memory_limit,
 )
@@ -65,24 +65,20 @@ def with_memory_limit(command: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(command)
     def wrapper(*args: Any, memory_limit: float = DEFAULT_MEMORY_LIMIT, **kwargs: Any) -> Any:
-        before = _limit_now()
-        set_memory_limit(memory_limit)
+        before = memory_setting()
+        set_memory_limit(memory_limit, CLI_MEMORY_HOW)
         watchdog = _Watchdog(memory_limit, name) if memory_limit else None
         try:
             return command(*args, **kwargs)
         finally:
             if watchdog is not None:
                 watchdog.stop()
-            set_memory_limit(before)
+            set_memory_limit(*before)
 
     wrapper.__signature__ = signature.replace(  # type: ignore[attr-defined]
         parameters=[*signature.parameters.values(), option]
     )
     return wrapper
-
-
-def _limit_now() -> float | None:
-    return memory_limit()
 
 
 class _Watchdog:

@@ -74,20 +74,27 @@ LIBRARY_MEMORY_HOW = "the memory_limit argument (GB; None for none)"
 CLI_MEMORY_HOW = "--memory-limit GB (0 for none)"
 """How the command line raises a memory limit."""
 
-_command_memory_limit: list[float | None] = [DEFAULT_MEMORY_LIMIT]
-"""The memory limit of the command being run (set by the command line's ``--memory-limit``),
-which every :class:`Deadline` made without one of its own takes."""
+_command_memory: list[tuple[float | None, str]] = [(DEFAULT_MEMORY_LIMIT, LIBRARY_MEMORY_HOW)]
+"""The memory limit of the command being run and how to raise it (set by the command line's
+``--memory-limit``), which every :class:`Deadline` made without a limit of its own takes."""
 
 
-def set_memory_limit(gigabytes: float | None) -> None:
+def set_memory_limit(gigabytes: float | None, how: str = LIBRARY_MEMORY_HOW) -> None:
     """Make ``gigabytes`` (``None`` or 0: none) the memory limit of the deadlines made from now
-    on without a limit of their own: what ``--memory-limit`` does for a whole command."""
-    _command_memory_limit[0] = gigabytes if gigabytes else None
+    on without a limit of their own, their messages saying ``how`` to raise it: what
+    ``--memory-limit`` does for a whole command (with :data:`CLI_MEMORY_HOW`)."""
+    _command_memory[0] = (gigabytes if gigabytes else None, how)
 
 
 def memory_limit() -> float | None:
     """The memory limit, in GB, that a deadline made now without one of its own takes."""
-    return _command_memory_limit[0]
+    return _command_memory[0][0]
+
+
+def memory_setting() -> tuple[float | None, str]:
+    """The memory limit a deadline made now takes and how to raise it (to set back after a
+    command with :func:`set_memory_limit`)."""
+    return _command_memory[0]
 
 
 def resident_bytes() -> int:
@@ -152,8 +159,9 @@ class Deadline:
         self._end = None if self.seconds is None else time.monotonic() + self.seconds
         self._calls = 0
         self.stage = ""
-        chosen = memory_limit() if isinstance(memory, EllipsisType) else memory
-        self.memory: float | None = chosen if chosen else None
+        if isinstance(memory, EllipsisType):  # the command's limit, raised as it says
+            memory, memory_how = _command_memory[0]
+        self.memory: float | None = memory if memory else None
         """The memory limit in GB (``None``: none); by default the command's
         (:func:`memory_limit`)."""
         self.memory_how = memory_how

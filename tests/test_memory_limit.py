@@ -18,7 +18,17 @@ import typer
 
 from mitlc.automata import compile_formula
 from mitlc.cli import app
-from mitlc.limits import GB, Deadline, LimitError, memory_limit, resident_bytes
+from mitlc.limits import (
+    CLI_MEMORY_HOW,
+    GB,
+    LIBRARY_MEMORY_HOW,
+    Deadline,
+    LimitError,
+    memory_limit,
+    memory_setting,
+    resident_bytes,
+    set_memory_limit,
+)
 from mitlc.syntax import parse
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -170,3 +180,16 @@ def test_the_time_limit_is_looked_at_inside_one_states_transitions() -> None:
     with pytest.raises(LimitError, match=r"time limit of 0\.5 s"):
         compile_formula(wide, time_limit=0.5, memory_limit=None)
     assert time.monotonic() - start < 2.0
+
+
+def test_a_library_deadline_inside_a_command_says_how_the_command_raises_it() -> None:
+    # `mitlc plot` sets its run up through the library: the message must name --memory-limit.
+    before = memory_setting()
+    try:
+        set_memory_limit(0.5, CLI_MEMORY_HOW)
+        inside = Deadline.of(None, 60, "setting up the run")
+        assert (inside.memory, inside.memory_how) == (0.5, CLI_MEMORY_HOW)
+    finally:
+        set_memory_limit(*before)
+    outside = Deadline.of(None, 60, "setting up the run")
+    assert outside.memory_how == LIBRARY_MEMORY_HOW
