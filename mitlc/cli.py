@@ -30,6 +30,7 @@ from mitlc.cli_common import (
     reports_errors,
 )
 from mitlc.cli_learn import register as register_learning
+from mitlc.cli_memory import exit_now
 from mitlc.cli_sweep import register as register_sweeps
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_STATES, DEFAULT_TIME_LIMIT, Deadline
@@ -267,4 +268,8 @@ register_sweeps(app, reports_errors)
 
 def main() -> None:
     """The console script's entry point."""
-    app()
+    try:
+        app()
+    except SystemExit as done:
+        exit_now(done.code if isinstance(done.code, int) else 1)
+        raise

@@ -5,15 +5,16 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 from collections.abc import Callable
 from typing import Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
-from mitlc.cli_memory import with_memory_limit
+from mitlc.cli_memory import stopped_at_a_limit, with_memory_limit
 from mitlc.errors import MitlcError
-from mitlc.limits import CLI_HOW, CLI_MEMORY_HOW, Deadline
+from mitlc.limits import CLI_HOW, CLI_MEMORY_HOW, Deadline, LimitError
 from mitlc.syntax import Formula, parse, read_spec
 
 P = ParamSpec("P")
@@ -64,6 +65,8 @@ def reports_errors(command: Callable[P, R]) -> Callable[P, R]:
             return command(*args, **kwargs)
         except MitlcError as err:
             typer.echo(err.render(), err=True)
+            if isinstance(err, LimitError):
+                stopped_at_a_limit()
             raise typer.Exit(1) from None
         except OSError as err:
             name = f"{err.filename}: " if err.filename is not None else ""
@@ -126,5 +129,17 @@ TimeLimitOpt = Annotated[float, time_limit_option()]
 
 
 def command_deadline(seconds: float, command: str) -> Deadline:
-    """The time limit of one command (``--time-limit``)."""
-    return Deadline(seconds, f"mitlc {command}", CLI_HOW)
+    """The time limit of one command (``--time-limit``), counted from the start of the process:
+    the seconds Python and the imports took are the command's too."""
+    return Deadline(seconds, f"mitlc {command}", CLI_HOW).counted_from(_seconds_since_start())
+
+
+def _seconds_since_start() -> float:
+    """Seconds since this process started (Linux's ``/proc``; 0 where it cannot be read)."""
+    try:
+        with open("/proc/uptime", "rb") as uptime, open("/proc/self/stat", "rb") as stat:
+            now = float(uptime.read().split()[0])
+            fields = stat.read().rsplit(b")", 1)[1].split()
+        return max(0.0, now - int(fields[19]) / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return 0.0

@@ -199,6 +199,13 @@ class Deadline:
         """Seconds left (at least 0), or ``None`` without a limit."""
         return None if self._end is None else max(0.0, self._end - time.monotonic())
 
+    def counted_from(self, seconds_ago: float) -> Deadline:
+        """This deadline, its time counted from ``seconds_ago`` seconds ago (a command's from
+        the start of its process); returns ``self``."""
+        if self._end is not None:
+            self._end -= max(0.0, seconds_ago)
+        return self
+
     def at(self, stage: str) -> Deadline:
         """This deadline, its message now naming ``stage`` (returns ``self``)."""
         self.stage = stage
