@@ -345,6 +345,12 @@ def plot_command(
         int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
     ] = 5,
     seed: Annotated[int, typer.Option("--seed", help="The trajectories' seed.")] = 0,
+    time_limit: Annotated[
+        float,
+        time_limit_option(
+            "Stop setting the run up (its task, its product) after this many seconds (0: no limit)."
+        ),
+    ] = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
     from mitlc.learn.bounds import check_option
@@ -355,7 +361,8 @@ def plot_command(
     from mitlc.learn.setting import read_config
 
     read_config(run)
-    for path in plot_run(run, out, trajectories=trajectories, seed=seed):
+    deadline = command_deadline(time_limit, "plot")
+    for path in plot_run(run, out, trajectories=trajectories, seed=seed, deadline=deadline):
         typer.echo(str(path))
 
 

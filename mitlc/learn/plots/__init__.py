@@ -38,6 +38,7 @@ from mitlc.learn.plots.grid import GRID_SIZE, trajectory_figure
 from mitlc.learn.plots.plane import plane_figure, rollouts_plane
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, read_config
+from mitlc.limits import Deadline
 from mitlc.syntax import parse
 from mitlc.worlds.load import kind_of
 from mitlc.worlds.plane import PlaneWorld
@@ -56,15 +57,21 @@ __all__ = [
 
 
 def plot_run(
-    directory: Path, out: Path | None = None, *, trajectories: int = 5, seed: int = 0
+    directory: Path,
+    out: Path | None = None,
+    *,
+    trajectories: int = 5,
+    seed: int = 0,
+    deadline: Deadline | None = None,
 ) -> list[Path]:
     """Draw the run in ``directory`` (see the module docstring) into ``out`` (default: the run
-    directory); ``trajectories`` greedy rollouts with ``seed``. The paths written, in order."""
+    directory); ``trajectories`` greedy rollouts with ``seed``. The paths written, in order.
+    Setting the run up (its task and product) stops at ``deadline`` (by default a minute)."""
     directory = Path(directory)
     out = directory if out is None else Path(out)
     data, config = read_config(directory)
     metrics = read_metrics(directory)
-    setting, learner = load_learner(directory)
+    setting, learner = load_learner(directory, deadline=deadline)
     name = data.get("world_name", Path(str(data.get("world", "?"))).stem)
     curve = out / LEARNING_CURVE
     write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {config.algo}")))
@@ -74,7 +81,9 @@ def plot_run(
         write_atomically(out / TRAJECTORIES, drawn)
         written.append(out / TRAJECTORIES)
     automaton = out / AUTOMATON
-    timed = compile_formula(parse(setting.world.spec, setting.world.spec_source)).timed
+    timed = compile_formula(
+        parse(setting.world.spec, setting.world.spec_source), deadline=deadline
+    ).timed
     render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
     return [*written, automaton]
 
