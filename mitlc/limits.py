@@ -272,14 +272,32 @@ def collector_paused() -> Iterator[None]:
     """Pause Python's cyclic garbage collector for a construction that makes millions of small
     long-lived objects and no garbage cycles (a translation, a folding): its full collections
     rescan every object made so far, a third of the time of a 100,000-state compile. Reference
-    counting still frees everything; the collector runs again (as before) on leaving."""
+    counting still frees everything; the collector runs again (as before) on leaving.
+
+    Leaving with an error (a limit), what was built is about to be freed: the objects present
+    are frozen (:func:`gc.freeze`) before the collector runs again, so that its first
+    collection does not walk all of them first (a second and more past the limit on a
+    gigabyte). They are unfrozen when the next construction starts, by when reference
+    counting has freed what the error dropped; the rest joins the oldest generation."""
+    if _frozen[0]:
+        gc.unfreeze()
+        _frozen[0] = False
     enabled = gc.isenabled()
     gc.disable()
     try:
         yield
+    except BaseException:
+        if enabled:
+            gc.freeze()
+            _frozen[0] = True
+        raise
     finally:
         if enabled:
             gc.enable()
+
+
+_frozen: list[bool] = [False]
+"""Whether :func:`collector_paused` froze the collector's objects on leaving with an error."""
 
 
 # --- input sizes: specs, world files, traces (checked before or while they are read) --------
