@@ -15,7 +15,8 @@ ratios.
 measures memory instead: each size's whole check (``bench/check_one.py``) runs in a child
 process whose peak resident memory (``ru_maxrss``) is read, and Storm checks the same product,
 exported to DRN by another child, in a third (``bench/storm_one.py``). Prints grid, product
-states, transitions, seconds, peak MB and bytes per product state for both, and the ratios.
+states, transitions, wall-clock and CPU seconds, peak MB and bytes per product state for both,
+and the ratios (of wall-clock seconds and of peaks).
 """
 
 from __future__ import annotations
@@ -88,33 +89,39 @@ def _child(*args: str) -> list[str]:
 def memory_table(sizes: list[int], storm: bool) -> None:
     """Peak memory of mitlc's whole check and of Storm's, each in its own child process."""
     header = (
-        f"{'grid':>7} {'states':>10} {'transitions':>11} {'mitlc s':>8} {'peak MB':>8} "
-        f"{'B/state':>7} {'storm s':>8} {'storm MB':>8} {'B/state':>7} {'s ratio':>7} "
-        f"{'MB ratio':>8} {'pmax':>9} {'storm pmax':>10}"
+        f"{'grid':>7} {'states':>10} {'transitions':>11} {'mitlc s':>8} {'cpu s':>7} "
+        f"{'peak MB':>8} {'B/state':>7} {'storm s':>8} {'cpu s':>7} {'storm MB':>8} "
+        f"{'B/state':>7} {'s ratio':>7} {'MB ratio':>8} {'pmax':>9} {'storm pmax':>10}"
     )
     print(header)
     print("-" * len(header))
     with tempfile.TemporaryDirectory() as folder:
         for n in sizes:
-            _, states, _, transitions, seconds, value, _, peak = _child("check_one.py", str(n))
+            fields = _child("check_one.py", str(n))
+            states, transitions, seconds, value = fields[1], fields[3], fields[4], fields[5]
+            peak, cpu = fields[7], fields[8]
             row = (
                 f"{n:>3}x{n:<3} {int(states):>10} {int(transitions):>11} {float(seconds):>8.1f} "
-                f"{float(peak):>8.0f} {float(peak) * 2**20 / int(states):>7.0f}"
+                f"{float(cpu):>7.1f} {float(peak):>8.0f} "
+                f"{float(peak) * 2**20 / int(states):>7.0f}"
             )
             if storm:
                 drn = str(Path(folder) / "product.drn")
                 _child("storm_one.py", "write", str(n), drn)
-                _, _, build, solve, theirs, storm_peak = _child("storm_one.py", "check", drn)
+                theirs_fields = _child("storm_one.py", "check", drn)
                 Path(drn).unlink()
-                storm_s = float(build) + float(solve)
+                build, solve, theirs, storm_peak, storm_cpu = theirs_fields[2:7]
+                storm_s = max(float(build) + float(solve), 1e-3)
                 row += (
-                    f" {storm_s:>8.1f} {float(storm_peak):>8.0f} "
+                    f" {storm_s:>8.1f} {float(storm_cpu):>7.1f} {float(storm_peak):>8.0f} "
                     f"{float(storm_peak) * 2**20 / int(states):>7.0f} "
                     f"{float(seconds) / storm_s:>7.2f} {float(peak) / float(storm_peak):>8.2f} "
                     f"{float(value):>9.6f} {float(theirs):>10.6f}"
                 )
             else:
-                row += f" {'-':>8} {'-':>8} {'-':>7} {'-':>7} {'-':>8} {float(value):>9.6f}"
+                row += (
+                    f" {'-':>8} {'-':>7} {'-':>8} {'-':>7} {'-':>7} {'-':>8} {float(value):>9.6f}"
+                )
             print(row, flush=True)
 
 

@@ -2,9 +2,11 @@
 
     .venv/bin/python bench/check_one.py 100
 
-Prints n, product states, choices, transitions, seconds, pmax, pmax_horizon and this process's
+Prints n, product states, choices, transitions, seconds, pmax, pmax_horizon, this process's
 peak resident memory in MB (``ru_maxrss``; run it as a child process so that nothing else
-counts). The world is ``bench/check_bench.py``'s; no time limit, no product-size limit.
+counts) and its CPU seconds (user and system, the loading of the world included: on a shared
+machine the wall-clock seconds are noisy). The world is ``bench/check_bench.py``'s; no time
+limit, no product-size limit.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ def main() -> None:
             world, translate(parse(world.spec)), max_product_states=None, time_limit=None
         )
         seconds = time.perf_counter() - start
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    peak, cpu = usage.ru_maxrss / 1024, usage.ru_utime + usage.ru_stime
     p = report.product
     print(
         n,
@@ -48,6 +51,7 @@ def main() -> None:
         report.pmax,
         report.pmax_horizon,
         f"{peak:.0f}",
+        f"{cpu:.1f}",
     )
 
 

@@ -72,3 +72,75 @@ def test_the_arrays_are_reserved_before_they_grow() -> None:
     column = Column(np.float64, Deadline(None, "the product build", memory=0.001))
     with pytest.raises(LimitError, match="the product's arrays"):
         column.append(np.zeros(1_000_000))
+
+
+def _grid_product(n: int, tmp_path):  # type: ignore[no-untyped-def]
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from check_bench import world_yaml
+
+    from mitlc.syntax import parse
+
+    path = tmp_path / f"grid{n}.yaml"
+    path.write_text(world_yaml(n), encoding="utf-8")
+    world = load_world(path)
+    return world, build_product(world, translate(parse(world.spec)))
+
+
+def test_the_state_graph_holds_no_weights(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from mitlc.check.topo import state_graph
+
+    _, p = _grid_product(4, tmp_path)
+    graph = state_graph(p)
+    assert graph.data.strides == (0,) and (graph.data == 1.0).all()
+    assert graph.indices.dtype == np.int32
+    rows = np.repeat(np.arange(p.num_states), np.diff(graph.indptr))
+    edges = set(zip(rows.tolist(), graph.indices.tolist(), strict=True))
+    assert len(edges) == graph.nnz  # each edge once
+    sources = np.repeat(np.arange(p.num_states), np.diff(p.choice_ptr))
+    made = np.repeat(sources, np.diff(p.transitions.indptr))
+    assert edges == set(zip(made.tolist(), p.transitions.targets.tolist(), strict=True))
+
+
+def test_the_acyclic_horizon_is_the_steps_table(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """One pass over the layers gives the steps' last table bit for bit, from the first
+    horizon that covers the layers; below it the steps run."""
+    from mitlc.check.solve import _ends, _mask_matrices, pmax_horizon
+    from mitlc.check.topo import acyclic_horizon, layers, state_graph
+
+    _, p = _grid_product(5, tmp_path)
+    count = len(layers(state_graph(p))[1]) - 1
+    _, history = pmax_horizon(p, count + 2)
+    fast = []
+    for horizon in range(count - 3, count + 3):
+        table = acyclic_horizon(p, _mask_matrices(p), _ends(p), horizon, Deadline.none())
+        fast.append(table is not None)
+        within, last = pmax_horizon(p, horizon, keep_history=False)
+        assert last[0].tobytes() == history[horizon].tobytes()
+        assert within == pmax_horizon(p, horizon)[0]
+    assert fast == [False, False, True, True, True, True]
+
+
+def test_the_blocks_give_the_whole_pass(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The passes over the transitions a block of states (choices) at a time give what one
+    pass over all of them gives."""
+    import mitlc.check.mec as mec
+    import mitlc.check.topo as topo
+
+    _, p = _grid_product(6, tmp_path)
+    whole = pmax(p)
+    monkeypatch.setattr(topo, "CHUNK", 7)
+    monkeypatch.setattr(mec, "CHUNK", 11)
+    blocks = pmax(p)
+    assert whole.values.tobytes() == blocks.values.tobytes()
+    assert np.array_equal(whole.policy, blocks.policy)
+    stays, leaving = topo._self_loops(p)
+    sources = np.repeat(np.arange(p.num_states), np.diff(p.choice_ptr))
+    t = p.transitions
+    for c in range(p.num_choices):
+        row = slice(int(t.indptr[c]), int(t.indptr[c + 1]))
+        here = t.targets[row] == sources[c]
+        assert stays[c] == (t.probs[row][here].sum() if here.any() else 0.0)
+    assert np.array_equal(leaving, stays < 1.0 - 1e-15)

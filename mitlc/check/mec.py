@@ -22,21 +22,28 @@ from mitlc.worlds.model import BoolArray, IntArray
 
 
 def maximal_end_components(
-    product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
+    product: Product,
+    graph: csr_matrix | None = None,
+    *,
+    deadline: Deadline | None = None,
+    components: IntArray | None = None,
 ) -> tuple[IntArray, BoolArray]:
     """``(component, kept)``: each state's MEC label (``-1`` for none) and a mask of the choices
     that stay inside their MEC (``graph``: :func:`mitlc.check.topo.state_graph`'s, when the
     caller has it). The first round splits the whole state graph; later rounds only the graph
     of the choices kept so far, which in a nearly acyclic product is small. ``deadline`` (none
-    by default) is read every round."""
+    by default) is read every round; ``components``: the graph's strongly connected components
+    (scipy's labels), when the caller has them."""
     clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
     t = product.transitions
     sources = choice_sources(product)
     per_choice = np.diff(t.indptr)
     graph = state_graph(product) if graph is None else graph
-    _, labels = connected_components(graph, directed=True, connection="strong")
-    kept = _staying(labels, sources, t.targets, t.indptr)
+    if components is None:
+        _, components = connected_components(graph, directed=True, connection="strong")
+    kept = _staying(components, sources, t.targets, t.indptr)
+    del components
     alive = np.zeros(n, dtype=bool)
     alive[sources[kept]] = True
     chosen = np.flatnonzero(kept)
@@ -59,24 +66,39 @@ def maximal_end_components(
         chosen, alive = chosen[stay], new_alive
 
 
+CHUNK = 1 << 20
+"""Choices per block in :func:`_staying` (its scratch: a few bytes a transition of a block)."""
+
+
 def _staying(labels: IntArray, sources: IntArray, targets: IntArray, indptr: IntArray) -> BoolArray:
-    """Per choice, whether all its targets lie in its source's component (4 bytes a
-    transition of scratch; a choice without transitions stays)."""
-    per_choice = np.diff(indptr)
-    leaves = np.repeat(labels[sources], per_choice)
-    np.not_equal(leaves, labels[targets], out=leaves)
-    if not len(targets):
-        return np.ones(len(per_choice), dtype=bool)
-    starts = np.minimum(indptr[:-1], len(targets) - 1)
-    kept: BoolArray = (np.maximum.reduceat(leaves, starts) == 0) | (per_choice == 0)
+    """Per choice, whether all its targets lie in its source's component (a choice without
+    transitions stays), a block of :data:`CHUNK` choices at a time."""
+    choices = len(indptr) - 1
+    kept = np.ones(choices, dtype=bool)
+    for lo in range(0, choices, CHUNK):
+        hi = min(lo + CHUNK, choices)
+        a, b = int(indptr[lo]), int(indptr[hi])
+        if a == b:
+            continue
+        per_choice = np.diff(indptr[lo : hi + 1])
+        leaves = np.repeat(labels[sources[lo:hi]], per_choice)
+        np.not_equal(leaves, labels[targets[a:b]], out=leaves)
+        starts = np.minimum(indptr[lo:hi] - a, b - a - 1)
+        kept[lo:hi] = (np.maximum.reduceat(leaves, starts) == 0) | (per_choice == 0)
     return kept
 
 
 def accepting_states(
-    product: Product, graph: csr_matrix | None = None, *, deadline: Deadline | None = None
+    product: Product,
+    graph: csr_matrix | None = None,
+    *,
+    deadline: Deadline | None = None,
+    components: IntArray | None = None,
 ) -> BoolArray:
-    """The states that lie in an accepting maximal end component (a boolean mask)."""
-    labels, kept = maximal_end_components(product, graph, deadline=deadline)
+    """The states that lie in an accepting maximal end component (a boolean mask);
+    ``components``: the strongly connected components of ``graph`` (scipy's labels), when the
+    caller has them."""
+    labels, kept = maximal_end_components(product, graph, deadline=deadline, components=components)
     sources = choice_sources(product)
     all_sets = (1 << product.num_sets) - 1
     chosen = np.flatnonzero(kept)

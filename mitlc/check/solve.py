@@ -24,10 +24,12 @@ from types import EllipsisType
 
 import numpy as np
 from scipy.sparse import csr_matrix, identity
+from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
 from mitlc.check.topo import (
+    acyclic_horizon,
     backward_reachable,
     choice_sources,
     gather,
@@ -161,10 +163,26 @@ def max_reach(
     or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
+    return _max_reach(product, target, [state_graph(product) if graph is None else graph], clock)
+
+
+def _max_reach(
+    product: Product,
+    target: BoolArray,
+    graphs: list[csr_matrix],
+    clock: Deadline,
+    components: IntArray | None = None,
+) -> Solution:
+    """:func:`max_reach`, taking the state graph out of ``graphs`` (so that it is freed once
+    the topological values are computed, when the caller holds no other reference);
+    ``components``: its strongly connected components, when the caller has them."""
     matrix = _choice_matrix(product)
-    graph = state_graph(product) if graph is None else graph
+    graph = graphs.pop()
     zero = ~backward_reachable(graph, target)
-    values = topological_values(product, matrix, target, zero, graph, deadline=clock)
+    values = topological_values(
+        product, matrix, target, zero, graph, deadline=clock, components=components
+    )
+    del graph, components
     sweeps = 0
     for sweeps in range(1, 100_001):  # noqa: B007 - the count says whether the seed was exact
         clock.check_now()
@@ -179,7 +197,7 @@ def max_reach(
     # no optimal choice loops forever away from it.
     sources = choice_sources(product)
     allowed = q_values >= values[sources] - 1e-9
-    del sources
+    del sources, q_values
     _, policy = _backward_search(product, allowed, target)
     if sweeps == 1:
         # The topological values are already the Bellman fixpoint reached from below, and the
@@ -209,9 +227,11 @@ def pmax(
     or past ``memory_limit`` GB held (``None``: no
     limit), or at ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
-    graph = state_graph(product)
-    accepting = accepting_states(product, graph, deadline=clock)
-    return max_reach(product, accepting, graph, deadline=clock)
+    graphs = [state_graph(product)]
+    # The strongly connected components once, for the end components and the layers both.
+    _, components = connected_components(graphs[0], directed=True, connection="strong")
+    accepting = accepting_states(product, graphs[0], deadline=clock, components=components)
+    return _max_reach(product, accepting, graphs, clock, components)
 
 
 FULL_STEP = 0.25
@@ -241,6 +261,10 @@ def pmax_horizon(
     which is exactly what a full step would give them. The matrix of a mask reads the values
     of the mask ``mask | marks[c]`` that choice ``c`` moves to from the whole table at once.
 
+    With ``keep_history`` off, an acyclic product without jumps whose layers the horizon
+    covers gets that last table in one pass over its layers instead
+    (:func:`mitlc.check.topo.acyclic_horizon`: the same row products, bit-identical).
+
     Once a step changes nothing the table is a fixpoint and the steps left are not computed
     (with ``keep_history`` they are one read-only copy of it), so a horizon far past the
     product's depth costs no more than the depth. Otherwise a step costs at least the states it
@@ -249,6 +273,10 @@ def pmax_horizon(
     or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
+    if not keep_history:  # an acyclic product's fixpoint, layer by layer, when the steps reach it
+        last = acyclic_horizon(product, _mask_matrices(product), _ends(product), horizon, clock)
+        if last is not None:
+            return start_average(product, last[0]), [last]
     n = product.num_states
     t = product.transitions
     ptr = product.choice_ptr
@@ -319,7 +347,10 @@ def _mask_matrices(product: Product) -> list[csr_matrix]:
         csr_matrix(
             (
                 probs,
-                t.targets + np.repeat(rules.saturate(mask, product.marks, all_sets) * n, sizes),
+                t.targets
+                + np.repeat(
+                    rules.saturate(mask, product.marks.astype(np.int64), all_sets) * n, sizes
+                ),
                 t.indptr,
             ),
             shape=shape,

@@ -24,20 +24,40 @@ from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 TOLERANCE = 1e-14
 
+CHUNK = 1 << 18
+"""States per block where a pass over the transitions makes scratch the size of a block's."""
+
 
 def state_graph(product: Product) -> csr_matrix:
     """The product's state graph (``x -> y`` when some choice of ``x`` may reach ``y``) in
     compressed rows, read off the choice rows; each edge once (scipy 1.17's strongly connected
-    components do not terminate on duplicate edges). Duplicates are merged on a one-byte
-    pattern (sorted in place), so the transient memory is 5 bytes a transition."""
+    components do not terminate on duplicate edges). Duplicates are merged on a boolean
+    pattern (sorted in place; a sum of booleans never drops an edge), so the transient memory
+    is 5 bytes a transition. Its data is one ``1.0`` seen through a zero stride (read-only):
+    scipy's graph routines want float64 data but read only the structure, so the graph holds
+    4 bytes an edge, not 12."""
     t = product.transitions
     n = product.num_states
     indptr = t.indptr[product.choice_ptr]
-    pattern = np.ones(len(t.targets), dtype=np.int8)
+    pattern = np.ones(len(t.targets), dtype=np.bool_)
     graph = csr_matrix((pattern, t.targets.copy(), indptr), shape=(n, n))
     graph.sum_duplicates()
-    graph.data = np.ones(graph.nnz)
-    return graph
+    return _ones(graph.indices, graph.indptr, n)
+
+
+def _ones(indices: IntArray, indptr: IntArray, n: int) -> csr_matrix:
+    """The ``n x n`` graph of ``indices`` and ``indptr`` with every weight ``1.0``, the
+    weights a zero-stride view (no array of them is made)."""
+    ones = np.broadcast_to(np.float64(1.0), (len(indices),))
+    return csr_matrix((ones, indices, indptr), shape=(n, n))
+
+
+def _reversed(graph: csr_matrix) -> tuple[IntArray, IntArray]:
+    """``(ptr, tails)``: the predecessors of ``y`` in ``graph`` are ``tails[ptr[y]:ptr[y+1]]``
+    (its pattern in compressed columns, made from a boolean one: 5 bytes an edge)."""
+    pattern = np.ones(len(graph.indices), dtype=np.bool_)
+    back = csr_matrix((pattern, graph.indices, graph.indptr), shape=graph.shape).tocsc()
+    return back.indptr, back.indices
 
 
 def choice_sources(product: Product) -> IntArray:
@@ -50,9 +70,9 @@ def choice_sources(product: Product) -> IntArray:
 def into_choices(product: Product) -> tuple[IntArray, IntArray]:
     """``(ptr, choices)``: the choices that may reach state ``y`` are
     ``choices[ptr[y]:ptr[y+1]]`` (the choice matrix's pattern in compressed columns, made from
-    a one-byte pattern: about 5 bytes a transition)."""
+    a boolean pattern: about 5 bytes a transition)."""
     t = product.transitions
-    pattern = np.ones(len(t.targets), dtype=np.int8)
+    pattern = np.ones(len(t.targets), dtype=np.bool_)
     shape = (product.num_choices, product.num_states)
     into = csr_matrix((pattern, t.targets, t.indptr), shape=shape).tocsc()
     return into.indptr.astype(np.int64), into.indices
@@ -63,11 +83,12 @@ def backward_reachable(graph: csr_matrix, target: BoolArray) -> BoolArray:
     breadth-first search in C over the reversed graph, from a virtual state before every
     target state."""
     n = graph.shape[0]
-    back = graph.T.tocsr()
-    sources = np.flatnonzero(target)
-    indptr = np.concatenate([back.indptr, [back.indptr[-1] + len(sources)]])
-    indices = np.concatenate([back.indices, sources])
-    extended = csr_matrix((np.ones(len(indices)), indices, indptr), shape=(n + 1, n + 1))
+    back_ptr, back_tails = _reversed(graph)
+    sources = np.flatnonzero(target).astype(back_tails.dtype)
+    indptr = np.concatenate([back_ptr, [back_ptr[-1] + len(sources)]]).astype(back_ptr.dtype)
+    indices = np.concatenate([back_tails, sources])
+    del back_ptr, back_tails
+    extended = _ones(indices, indptr, n + 1)
     order = breadth_first_order(extended, n, directed=True, return_predecessors=False)
     found = np.zeros(n + 1, dtype=bool)
     found[order] = True
@@ -93,14 +114,15 @@ def layers(forward: csr_matrix) -> tuple[IntArray, IntArray]:
     algorithm, layer ``d`` being ``order[ptr[d]:ptr[d+1]]`` (``ptr`` ends with the node count);
     layer 0 has no successors."""
     count = forward.shape[0]
-    tails = np.repeat(np.arange(count), np.diff(forward.indptr))
-    loops = tails == forward.indices
-    remaining = np.diff(forward.indptr) - np.bincount(tails[loops], minlength=count)
-    del tails, loops
-    backward = forward.tocsc()  # column j lists the predecessors of j
-    back_ptr = backward.indptr.astype(np.int64)
-    back_tails = backward.indices.astype(np.int64)
-    del backward
+    per_row = np.diff(forward.indptr)
+    tails = np.repeat(np.arange(count, dtype=np.int32), per_row)
+    loops = np.flatnonzero(tails == forward.indices)
+    del tails
+    remaining = per_row.astype(np.int64) - np.bincount(
+        np.searchsorted(forward.indptr, loops, side="right") - 1, minlength=count
+    )
+    del loops, per_row
+    back_ptr, back_tails = _reversed(forward)  # column j lists the predecessors of j
     slot = np.zeros(count, dtype=np.int64)
     frontier = np.flatnonzero(remaining == 0)
     found = [frontier]
@@ -128,13 +150,18 @@ def topological_values(
     graph: csr_matrix,
     *,
     deadline: Deadline | None = None,
+    components: IntArray | None = None,
 ) -> FloatArray:
     """The maximal probabilities of reaching ``target`` (``zero``: states that cannot);
     ``graph`` is the product's :func:`state_graph`. ``deadline`` (none by default) is read at
-    every layer and every sweep of a larger component's value iteration."""
+    every layer and every sweep of a larger component's value iteration; ``components``: the
+    graph's strongly connected components (scipy's labels), when the caller has them."""
     clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
-    count, labels = connected_components(graph, directed=True, connection="strong")
+    if components is None:
+        count, labels = connected_components(graph, directed=True, connection="strong")
+    else:
+        count, labels = int(components.max()) + 1 if len(components) else 0, components
     if count == n:  # every component a single state: the state graph is the condensation
         order, ptr = layers(graph)
         size = np.ones(n, dtype=np.int64)
@@ -200,13 +227,20 @@ def _solve_layers(
 
 def _self_loops(product: Product) -> tuple[FloatArray, BoolArray]:
     """Per choice, the probability of staying in its state (a choice's targets are distinct,
-    so one transition at most) and whether it may leave (at least 1e-15 of leaving)."""
+    so one transition at most) and whether it may leave (at least 1e-15 of leaving); read a
+    block of ``CHUNK`` choices at a time."""
     t = product.transitions
-    per_choice = np.diff(t.indptr)
-    loops = np.flatnonzero(t.targets == np.repeat(choice_sources(product), per_choice))
-    owner = np.searchsorted(t.indptr, loops, side="right") - 1
+    ptr = product.choice_ptr
     stays = np.zeros(product.num_choices)
-    stays[owner] = t.probs[loops]
+    for lo in range(0, product.num_states, CHUNK):
+        hi = min(lo + CHUNK, product.num_states)
+        first, last = int(ptr[lo]), int(ptr[hi])
+        a, b = int(t.indptr[first]), int(t.indptr[last])
+        per_choice = np.diff(t.indptr[first : last + 1])
+        owners = np.repeat(np.arange(lo, hi, dtype=t.targets.dtype), np.diff(ptr[lo : hi + 1]))
+        loops = np.flatnonzero(t.targets[a:b] == np.repeat(owners, per_choice)) + a
+        owner = np.searchsorted(t.indptr, loops, side="right") - 1
+        stays[owner] = t.probs[loops]
     leaving: BoolArray = stays < 1.0 - 1e-15
     return stays, leaving
 
@@ -232,3 +266,62 @@ def _solve_components(
         values[states[members]] = new
         if change < TOLERANCE:
             break
+
+
+def acyclic_horizon(
+    product: Product,
+    matrices: list[csr_matrix],
+    ends: FloatArray,
+    horizon: int,
+    deadline: Deadline,
+) -> FloatArray | None:
+    """``pmax_horizon``'s table after ``horizon`` steps, ``table[mask, x]``, when the product
+    is acyclic but for the absorbing states' self-loops, has no epsilon jump and ``horizon``
+    covers its layers; ``None`` otherwise (the caller then runs the steps). ``matrices``: per
+    mask, the choices' rows over all masks' values, and ``ends`` the table with no step left
+    (``pmax_horizon``'s).
+
+    Layer ``d`` (Kahn's, :func:`layers`; the absorbing states in layer 0) has all its
+    successors in layers below ``d``. The layer-0 states keep one value from the first step
+    on (from no step left on, when ``ends`` already has it), so by induction a state of layer
+    ``d`` has the same value after every ``r >= d + 1`` steps (``r >= d``): the fixpoint of the
+    Bellman step, ``T(x) = max_c P(c) T`` over the world choices with the satisfied state 1
+    and the violated 0. One pass over the layers from the sinks up computes it with the very
+    row products a step computes (scipy's ``csr_matvec``, a row's terms summed in order), so
+    the table is bit-identical to the steps' (backward induction on an acyclic graph in
+    topological order: Bertsekas, Dynamic Programming and Optimal Control, vol. 1, sec. 2.1)."""
+    from mitlc.product.explicit import SATISFIED, VIOLATED
+
+    n = product.num_states
+    ptr = product.choice_ptr
+    if horizon < 1 or (product.action < 0).any() or (np.diff(ptr) == 0).any():
+        return None
+    graph = state_graph(product)
+    rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(graph.indptr))
+    loops = rows[rows == graph.indices]
+    del rows
+    if ((loops != SATISFIED) & (loops != VIOLATED)).any():
+        return None
+    try:
+        order, layer_ptr = layers(graph)
+    except ValueError:  # a cycle
+        return None
+    del graph
+    if horizon < len(layer_ptr) - 2:
+        return None
+    table = np.zeros((len(matrices), n))
+    flat = table.ravel()
+    for depth in range(len(layer_ptr) - 1):
+        deadline.check_now()
+        states = order[int(layer_ptr[depth]) : int(layer_ptr[depth + 1])]
+        choices = spans(ptr, states)
+        counts = ptr[states + 1] - ptr[states]
+        starts = np.cumsum(counts) - counts
+        for mask, matrix in enumerate(matrices):
+            table[mask, states] = np.maximum.reduceat(matrix[choices] @ flat, starts)
+        if depth == 0:
+            table[:, SATISFIED], table[:, VIOLATED] = 1.0, 0.0
+            settled = np.array_equal(table[:, states], ends[:, states])
+            if horizon < len(layer_ptr) - 1 and not settled:
+                return None
+    return table

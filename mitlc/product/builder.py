@@ -239,8 +239,8 @@ class Builder:
         rank[order] = np.arange(len(order))
         combined = rank[e_choice] * self.count + e_target
         unique, inverse = np.unique(combined, return_inverse=True)
-        probs = np.zeros(len(unique))
-        np.add.at(probs, inverse, e_prob)
+        # Summed in the order the edges were made, as ``np.add.at`` sums them: the same floats.
+        probs = np.bincount(inverse, weights=e_prob, minlength=len(unique))
         edge_choice = unique // self.count
         base_choice, base_edge = self.action.size, self.targets.size
         per_state = np.bincount(owner, minlength=states)
