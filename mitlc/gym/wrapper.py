@@ -226,6 +226,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                 )
             return max_states, max_jumps or 0
         count = len(self.automaton.states)
+        if count:
+            self.monitor.jumps(count - 1)  # learns every state at once (one by one: quadratic)
         jumps = max((len(self.monitor.jumps(q)) for q in range(count)), default=0)
         if max_states is not None and max_states < count:
             raise TaskWrapperError(
