@@ -55,6 +55,7 @@ bench: $(STAMP)
 # Product build and exact solve of growing grids beside Storm on the exported model (a minute).
 bench-check: $(STAMP)
 	$(BIN)/python bench/check_bench.py --sizes 10,20,40,60,80,100
+	$(BIN)/python bench/check_bench.py --memory --sizes 10,60,100
 
 # The paper's three case studies trained and measured beside the optimum (about 13 minutes).
 bench-learn: $(STAMP)
