@@ -27,6 +27,7 @@ from mitlc.cli_common import (
     command_deadline,
     json_dumps,
     load_formula,
+    one_command_per_process,
     reports_errors,
 )
 from mitlc.cli_learn import register as register_learning
@@ -268,6 +269,7 @@ register_sweeps(app, reports_errors)
 
 def main() -> None:
     """The console script's entry point."""
+    one_command_per_process()
     try:
         app()
     except SystemExit as done:

@@ -32,6 +32,7 @@ from mitlc.limits import (
 from mitlc.syntax import parse
 
 ROOT = Path(__file__).resolve().parents[1]
+START = time.monotonic()
 TINY = "0.02"  # GB: less than any Python process holds with mitlc imported
 EXPLOSIVE = "F[0,1000] G[0,1000] a"  # about a million states of hundreds of atoms each
 
@@ -219,3 +220,15 @@ def test_a_command_stops_at_its_time_limit_counted_from_its_start() -> None:
         done.stderr
     )
     assert seconds < 3 + 1.5, seconds
+
+
+def test_a_command_run_in_a_longer_lived_process_counts_its_time_from_its_own_start() -> None:
+    # This test process has lived longer than the limit: a command it runs (as a test, or a
+    # program, through typer's runner) has the whole limit all the same.
+    from typer.testing import CliRunner
+
+    time.sleep(max(0.0, 1.5 - time.monotonic() + START))
+    done = CliRunner().invoke(
+        app, ["compile", "-e", "F[0,3] a", "--time-limit", "1", "-o", "/dev/null"]
+    )
+    assert done.exit_code == 0, done.output
