@@ -27,7 +27,7 @@ from mitlc.limits import (
     CLI_MEMORY_HOW,
     DEFAULT_MEMORY_LIMIT,
     GB,
-    gigabytes,
+    Deadline,
     memory_setting,
     resident_bytes,
     set_memory_limit,
@@ -96,11 +96,9 @@ class _Watchdog:
         threshold = self.limit * GB * WATCHDOG_MARGIN
         while not self._stopped.wait(WATCH_SECONDS):
             resident = resident_bytes()
-            if resident > threshold:
-                sys.stderr.write(
-                    f"{self.command} stopped at the memory limit of {self.limit:g} GB, "
-                    f"holding {gigabytes(resident)}; raise it with {CLI_MEMORY_HOW}\n"
-                )
+            if resident > threshold:  # the library's own message, without a stage
+                error = Deadline(None, self.command, memory=self.limit).memory_error(resident)
+                sys.stderr.write(f"{error}\n")
                 sys.stderr.flush()
                 os._exit(1)
 
