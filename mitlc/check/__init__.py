@@ -112,7 +112,11 @@ def check(
     product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
     solution = pmax(product, deadline=clock.at("pmax"))
     within, _ = pmax_horizon(
-        product, world.horizon, keep_history=False, deadline=clock.at("pmax_horizon")
+        product,
+        world.horizon,
+        keep_history=False,
+        deadline=clock.at("pmax_horizon"),
+        layered=solution.layers,
     )
     return CheckReport(
         world=world.name,

@@ -29,11 +29,13 @@ from scipy.sparse.linalg import spsolve
 
 from mitlc.check.mec import accepting_states
 from mitlc.check.topo import (
+    Layering,
     acyclic_horizon,
     backward_reachable,
     choice_sources,
     gather,
     into_choices,
+    layering,
     spans,
     state_graph,
     topological_values,
@@ -58,6 +60,9 @@ class Solution:
 
     values: FloatArray
     policy: IntArray
+    layers: Layering | None = None
+    """The product's layers when it is acyclic but for self-loops (``pmax``'s, which
+    ``pmax_horizon`` reads again instead of computing them a second time)."""
 
 
 def _choice_matrix(product: Product) -> csr_matrix:
@@ -172,15 +177,24 @@ def _max_reach(
     graphs: list[csr_matrix],
     clock: Deadline,
     components: IntArray | None = None,
+    layered: Layering | None = None,
 ) -> Solution:
     """:func:`max_reach`, taking the state graph out of ``graphs`` (so that it is freed once
     the topological values are computed, when the caller holds no other reference);
-    ``components``: its strongly connected components, when the caller has them."""
+    ``components``: its strongly connected components, and ``layered`` its layering, when the
+    caller has them."""
     matrix = _choice_matrix(product)
     graph = graphs.pop()
     zero = ~backward_reachable(graph, target)
     values = topological_values(
-        product, matrix, target, zero, graph, deadline=clock, components=components
+        product,
+        matrix,
+        target,
+        zero,
+        graph,
+        deadline=clock,
+        components=components,
+        layered=layered,
     )
     del graph, components
     sweeps = 0
@@ -202,7 +216,7 @@ def _max_reach(
     if sweeps == 1:
         # The topological values are already the Bellman fixpoint reached from below, and the
         # policy climbs to the target along optimal choices: nothing for policy iteration to do.
-        return Solution(np.clip(values, 0.0, 1.0), policy)
+        return Solution(np.clip(values, 0.0, 1.0), policy, layered)
     for _ in range(100):
         clock.check_now()
         values = _evaluate(product, matrix, policy, target, zero, clock)
@@ -212,7 +226,7 @@ def _max_reach(
         if not improve.any():
             break
         policy = np.where(improve, choice, policy)
-    return Solution(np.clip(values, 0.0, 1.0), policy)
+    return Solution(np.clip(values, 0.0, 1.0), policy, layered)
 
 
 def pmax(
@@ -228,10 +242,16 @@ def pmax(
     limit), or at ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax", memory_limit)
     graphs = [state_graph(product)]
-    # The strongly connected components once, for the end components and the layers both.
-    _, components = connected_components(graphs[0], directed=True, connection="strong")
+    # Layers first (products of time-bounded tasks are mostly acyclic but for self-loops:
+    # then every strongly connected component is one state); otherwise the components once,
+    # for the end components and the layers both.
+    layered = layering(graphs[0])
+    if layered is not None:
+        components = np.arange(product.num_states)
+    else:
+        _, components = connected_components(graphs[0], directed=True, connection="strong")
     accepting = accepting_states(product, graphs[0], deadline=clock, components=components)
-    return _max_reach(product, accepting, graphs, clock, components)
+    return _max_reach(product, accepting, graphs, clock, components, layered)
 
 
 FULL_STEP = 0.25
@@ -247,6 +267,7 @@ def pmax_horizon(
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
+    layered: Layering | None = None,
 ) -> tuple[float, list[FloatArray]]:
     """The maximal probability of success within ``horizon`` steps from the initial state
     (:func:`mitlc.task.rules.success` of the state the episode stops in; epsilon jumps take no
@@ -263,7 +284,8 @@ def pmax_horizon(
 
     With ``keep_history`` off, an acyclic product without jumps whose layers the horizon
     covers gets that last table in one pass over its layers instead
-    (:func:`mitlc.check.topo.acyclic_horizon`: the same row products, bit-identical).
+    (:func:`mitlc.check.topo.acyclic_horizon`: the same row products, bit-identical);
+    ``layered``: those layers when the caller has them (``pmax``'s :attr:`Solution.layers`).
 
     Once a step changes nothing the table is a fixpoint and the steps left are not computed
     (with ``keep_history`` they are one read-only copy of it), so a horizon far past the
@@ -274,7 +296,9 @@ def pmax_horizon(
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
     if not keep_history:  # an acyclic product's fixpoint, layer by layer, when the steps reach it
-        last = acyclic_horizon(product, _mask_matrices(product), _ends(product), horizon, clock)
+        last = acyclic_horizon(
+            product, _mask_matrices(product), _ends(product), horizon, clock, layered
+        )
         if last is not None:
             return start_average(product, last[0]), [last]
     n = product.num_states

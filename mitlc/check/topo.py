@@ -14,12 +14,15 @@ Größer and Klein, "Reduction techniques for model checking Markov decision pro
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from mitlc.limits import Deadline
-from mitlc.product.explicit import Product
+from mitlc.product.builder import INDEX_LIMIT
+from mitlc.product.explicit import SATISFIED, VIOLATED, Product
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 TOLERANCE = 1e-14
@@ -142,6 +145,33 @@ def layers(forward: csr_matrix) -> tuple[IntArray, IntArray]:
     return order, ptr
 
 
+@dataclass(frozen=True, slots=True)
+class Layering:
+    """The Kahn layers of a product whose state graph is acyclic but for self-loops
+    (:func:`layers`' ``order`` and ``ptr``), found once by ``pmax`` and read again by
+    ``pmax_horizon``; ``absorbing_loops`` says whether the only self-loops are those of the
+    two absorbing states (what :func:`acyclic_horizon` needs)."""
+
+    order: IntArray
+    ptr: IntArray
+    absorbing_loops: bool
+
+
+def layering(graph: csr_matrix) -> Layering | None:
+    """The product's :class:`Layering` from its :func:`state_graph`, or ``None`` when the
+    graph has a cycle of more than one state."""
+    try:
+        order, ptr = layers(graph)
+    except ValueError:
+        return None
+    rows = np.repeat(np.arange(graph.shape[0], dtype=np.int32), np.diff(graph.indptr))
+    loops = rows[rows == graph.indices]
+    absorbing = not ((loops != SATISFIED) & (loops != VIOLATED)).any()
+    if len(order) <= INDEX_LIMIT:  # held from pmax to pmax_horizon: 4 bytes a state
+        order = order.astype(np.int32)
+    return Layering(order, ptr, absorbing)
+
+
 def topological_values(
     product: Product,
     matrix: csr_matrix,
@@ -151,13 +181,19 @@ def topological_values(
     *,
     deadline: Deadline | None = None,
     components: IntArray | None = None,
+    layered: Layering | None = None,
 ) -> FloatArray:
     """The maximal probabilities of reaching ``target`` (``zero``: states that cannot);
     ``graph`` is the product's :func:`state_graph`. ``deadline`` (none by default) is read at
     every layer and every sweep of a larger component's value iteration; ``components``: the
-    graph's strongly connected components (scipy's labels), when the caller has them."""
+    graph's strongly connected components (scipy's labels), when the caller has them;
+    ``layered``: the graph's :func:`layering`, when the caller has it (then the graph is
+    acyclic but for self-loops and ``components`` is not read)."""
     clock = Deadline.none() if deadline is None else deadline
     n = product.num_states
+    if layered is not None:
+        size = np.ones(n, dtype=np.int64)
+        return _solve_layers(product, matrix, layered.order, layered.ptr, size, target, zero, clock)
     if components is None:
         count, labels = connected_components(graph, directed=True, connection="strong")
     else:
@@ -274,12 +310,14 @@ def acyclic_horizon(
     ends: FloatArray,
     horizon: int,
     deadline: Deadline,
+    layered: Layering | None = None,
 ) -> FloatArray | None:
     """``pmax_horizon``'s table after ``horizon`` steps, ``table[mask, x]``, when the product
     is acyclic but for the absorbing states' self-loops, has no epsilon jump and ``horizon``
     covers its layers; ``None`` otherwise (the caller then runs the steps). ``matrices``: per
     mask, the choices' rows over all masks' values, and ``ends`` the table with no step left
-    (``pmax_horizon``'s).
+    (``pmax_horizon``'s); ``layered``: the product's :func:`layering` when the caller has it
+    (it is computed otherwise).
 
     Layer ``d`` (Kahn's, :func:`layers`; the absorbing states in layer 0) has all its
     successors in layers below ``d``. The layer-0 states keep one value from the first step
@@ -290,23 +328,15 @@ def acyclic_horizon(
     row products a step computes (scipy's ``csr_matvec``, a row's terms summed in order), so
     the table is bit-identical to the steps' (backward induction on an acyclic graph in
     topological order: Bertsekas, Dynamic Programming and Optimal Control, vol. 1, sec. 2.1)."""
-    from mitlc.product.explicit import SATISFIED, VIOLATED
-
     n = product.num_states
     ptr = product.choice_ptr
     if horizon < 1 or (product.action < 0).any() or (np.diff(ptr) == 0).any():
         return None
-    graph = state_graph(product)
-    rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(graph.indptr))
-    loops = rows[rows == graph.indices]
-    del rows
-    if ((loops != SATISFIED) & (loops != VIOLATED)).any():
+    if layered is None:
+        layered = layering(state_graph(product))
+    if layered is None or not layered.absorbing_loops:
         return None
-    try:
-        order, layer_ptr = layers(graph)
-    except ValueError:  # a cycle
-        return None
-    del graph
+    order, layer_ptr = layered.order, layered.ptr
     if horizon < len(layer_ptr) - 2:
         return None
     table = np.zeros((len(matrices), n))
