@@ -107,7 +107,7 @@ def test_the_state_graph_holds_no_weights(tmp_path) -> None:  # type: ignore[no-
 def test_the_acyclic_horizon_is_the_steps_table(tmp_path) -> None:  # type: ignore[no-untyped-def]
     """One pass over the layers gives the steps' last table bit for bit, from the first
     horizon that covers the layers; below it the steps run."""
-    from mitlc.check.solve import _ends, _mask_matrices, pmax_horizon
+    from mitlc.check.solve import _ends, mask_matrices, pmax_horizon
     from mitlc.check.topo import acyclic_horizon, layers, state_graph
 
     _, p = _grid_product(5, tmp_path)
@@ -115,7 +115,7 @@ def test_the_acyclic_horizon_is_the_steps_table(tmp_path) -> None:  # type: igno
     _, history = pmax_horizon(p, count + 2)
     fast = []
     for horizon in range(count - 3, count + 3):
-        table = acyclic_horizon(p, _mask_matrices(p), _ends(p), horizon, Deadline.none())
+        table = acyclic_horizon(p, mask_matrices(p), _ends(p), horizon, Deadline.none())
         fast.append(table is not None)
         within, last = pmax_horizon(p, horizon, keep_history=False)
         assert last[0].tobytes() == history[horizon].tobytes()

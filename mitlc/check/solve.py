@@ -297,7 +297,7 @@ def pmax_horizon(
     clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
     if not keep_history:  # an acyclic product's fixpoint, layer by layer, when the steps reach it
         last = acyclic_horizon(
-            product, _mask_matrices(product), _ends(product), horizon, clock, layered
+            product, mask_matrices(product), _ends(product), horizon, clock, layered
         )
         if last is not None:
             return start_average(product, last[0]), [last]
@@ -306,7 +306,7 @@ def pmax_horizon(
     ptr = product.choice_ptr
     sources = choice_sources(product)
     jumps = np.flatnonzero(product.action < 0)
-    matrices = _mask_matrices(product)
+    matrices = mask_matrices(product)
     into_ptr, into_indices = into_choices(product)
     jump_sources = sources[jumps]
     jump_targets = t.targets[t.indptr[jumps]]
@@ -351,7 +351,7 @@ def pmax_horizon(
     return start_average(product, table[0]), history
 
 
-def _mask_matrices(product: Product) -> list[csr_matrix]:
+def mask_matrices(product: Product) -> list[csr_matrix]:
     """Per mask of sets seen, the world choices' rows (jumps zeroed) over the table of all
     masks' values: choice ``c`` reads the mask ``mask | marks[c]``. With one mask (no sets) the
     rows share the product's targets, and its probabilities too when there are no jumps."""
