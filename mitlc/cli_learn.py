@@ -143,6 +143,26 @@ def train_command(
             "auto: CUDA where torch sees it, else the CPU). A resumed run may change it.",
         ),
     ] = None,
+    shield: Annotated[
+        float | None,
+        typer.Option(
+            "--shield",
+            metavar="THETA",
+            help="Keep to the shield of the exact product (finite MDPs): only actions that "
+            "keep every shielded policy at THETA x the optimum within the horizon (1: optimal "
+            "actions only). Sets training.shield.",
+        ),
+    ] = None,
+    shield_violation: Annotated[
+        float | None,
+        typer.Option(
+            "--shield-violation",
+            metavar="DELTA",
+            help="Only actions whose violation probability within the horizon exceeds the "
+            "least possible by at most DELTA (0: least violation only). Sets "
+            "training.shield_violation.",
+        ),
+    ] = None,
     evaluate_after: Annotated[
         bool, typer.Option("--eval/--no-eval", help="Evaluate the policy at the end.")
     ] = True,
@@ -166,6 +186,9 @@ def train_command(
     from mitlc.learn.setting import CONFIG, read_config
 
     overrides = _overrides(settings or [], algo, seed, episodes, device)
+    for key, value in (("shield", shield), ("shield_violation", shield_violation)):
+        if value is not None:
+            overrides[key] = value
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
         config, name = config_for(world_file, {**_flatten(saved), **overrides})

@@ -192,6 +192,8 @@ TRAINING: dict[str, Bound] = {
     "shaping_reach": Bound(0, 1e6, (
         "an env distance: a grid's longest distance is below its 1,000,000 cells (mitlc's "
         "limit), and a continuous world's rooms are far smaller")),
+    "shield": Bound(0, 1, "a share of the optimum (0: no shield)"),
+    "shield_violation": Bound(0, 1, "a probability (1: no shield)"),
     "discount.gamma": Bound(0, 1, "a discount factor"),
     "discount.gamma_accept": Bound(0, 1, "a discount factor"),
     "q.num_envs": Bound(1, 65_536, (

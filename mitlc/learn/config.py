@@ -258,11 +258,27 @@ class TrainConfig:
     automaton has more than 1,000 states and its folding has clocks, else the state
     (:func:`mitlc.automata.clocks.clocks_shown`). (Tabular Q-learning reads product
     states.)"""
+    shield: float = 0.0
+    """The shield's ``theta`` (:mod:`mitlc.check.shield`, finite MDPs): only actions that keep
+    every shielded policy at ``theta`` times the optimum within the horizon; 0 turns it off,
+    1 allows only optimal actions."""
+    shield_violation: float = 1.0
+    """The shield's ``delta``: only actions whose violation probability within the horizon,
+    for every shielded policy, exceeds the least possible by at most ``delta``; 1 turns it
+    off, 0 allows only actions of least violation."""
+    shield_audit: bool = False
+    """Compute the shield but do not keep to it: ``metrics.jsonl`` records the actions taken
+    that it blocks and the violations that followed one (for a side-by-side benchmark)."""
     q: QConfig = field(default_factory=QConfig)
     dqn: DQNConfig = field(default_factory=DQNConfig)
     drqn: DRQNConfig = field(default_factory=DRQNConfig)
     sb3: SB3Config = field(default_factory=SB3Config)
     """The section of every ``sb3-*`` algorithm."""
+
+    @property
+    def shielded(self) -> bool:
+        """Whether a shield is asked for (``shield > 0`` or ``shield_violation < 1``)."""
+        return self.shield > 0 or self.shield_violation < 1
 
     @property
     def learner(self) -> QConfig | DQNConfig | DRQNConfig | SB3Config:

@@ -288,6 +288,7 @@ def _train(
             tally.window_count += int(ended.sum())
             tally.window_success += int(step.success[ended].sum())
             tally.window_return += float(step.episode_return[ended].sum())
+            tally.count(step)
             tally.seconds = time.perf_counter() - clock
             logged = tally.episodes // config.log_every > before // config.log_every
             if logged or tally.episodes >= total:
@@ -311,7 +312,16 @@ def _train(
             "seconds": round(tally.seconds, 3),
             "success_rate": tally.last_rate,
             "mean_return": tally.last_return,
+            "violations": tally.violations,
         }
+        if tally.shielded:
+            summary["shield"] = (
+                setting.tables.shield.summary()
+                if setting.tables and setting.tables.shield
+                else None
+            )
+            summary["blocked_actions"] = tally.blocked
+            summary["preventable_violations"] = tally.preventable
         if unseen:
             summary["never_held"] = list(unseen)
         write_json(directory / SUMMARY, summary)

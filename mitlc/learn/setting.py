@@ -12,7 +12,7 @@ task wrapper (:func:`task_vector_of`, any world); the batches of the Monte-Carlo
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -81,9 +81,44 @@ def prepare(
         world = open_world(world_path, spec)
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
     if not is_finite(world):
+        if config.shielded:
+            raise ConfigError(
+                f"{world_path}: a shield is computed from the exact product, which a world "
+                "that is not finite does not have (drop --shield / --shield-violation)"
+            )
         return Setting(world_path, world, automaton, config)
     product = build_product(world, automaton, deadline=clock.at("the product"))
-    return Setting(world_path, world, automaton, config, product, tables(product, world))
+    simulated = tables(product, world)
+    if config.shielded:
+        simulated = _shielded(world, product, simulated, config, clock.at("the shield"))
+    return Setting(world_path, world, automaton, config, product, simulated)
+
+
+def _shielded(
+    world: World, product: Product, simulated: Tables, config: TrainConfig, clock: Deadline
+) -> Tables:
+    """``simulated`` with the shield the settings ask for (:mod:`mitlc.check.shield`)."""
+    from mitlc.check.shield import shield
+
+    if config.algo.startswith("sb3-"):
+        raise ConfigError(
+            f"--algo {config.algo}: the shield reaches mitlc's own learners (q, dqn, drqn) "
+            "for now; Stable-Baselines3's MaskablePPO through the task wrapper's action_masks "
+            "is not wired yet"
+        )
+    if world.is_pomdp:
+        raise ConfigError(
+            f"{world.name}: a shield over a POMDP's observations is not built yet; shields "
+            "apply to MDPs (drop --shield / --shield-violation)"
+        )
+    made = shield(
+        product,
+        world.horizon,
+        theta=config.shield if config.shield > 0 else None,
+        delta=config.shield_violation if config.shield_violation < 1 else None,
+        deadline=clock,
+    )
+    return replace(simulated, shield=made, shield_enforced=not config.shield_audit)
 
 
 def setting_notes(setting: Setting) -> list[str]:

@@ -31,7 +31,7 @@ from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import RunError
 from mitlc.learn.rundir.state import Mismatch, conform
 from mitlc.learn.setting import Setting, task_vector_of
-from mitlc.worlds.model import IntArray
+from mitlc.worlds.model import BoolArray, IntArray
 
 CHUNK = 4096
 """Observations per forward pass when every product state is evaluated."""
@@ -67,11 +67,11 @@ class SB3Policy(Policy):
         with torch.no_grad():
             return greedy(self.scores(x), env.valid_actions())
 
-    def choices(self) -> IntArray:
+    def choices(self, valid: BoolArray | None = None) -> IntArray:
         """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
-        (-1 at the absorbing states), for :func:`mitlc.learn.evaluation.exact.policy_success` (an
-        MDP,
-        where the observation is the cell)."""
+        (-1 at the absorbing states) among the actions ``valid[mask, x]`` (default: every
+        valid one), for :func:`mitlc.learn.evaluation.exact.policy_success` (an MDP, where the
+        observation is the cell)."""
         t = self.tables
         assert t is not None, "exact evaluation needs the finite product"
         cells = np.maximum(t.world_state, 0)
@@ -83,7 +83,8 @@ class SB3Policy(Policy):
                     cells[states], self.encoder.automaton_of(states), np.full(len(states), mask)
                 )
                 with torch.no_grad():
-                    best = greedy(self.scores(x), t.valid[states])
+                    allowed = t.valid[states] if valid is None else valid[mask, states]
+                    best = greedy(self.scores(x), allowed)
                 chosen[mask, states] = t.choice[states, best]
         chosen[:, t.world_state < 0] = -1
         return chosen

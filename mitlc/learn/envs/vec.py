@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from mitlc.check.shield import Shield
 from mitlc.product.explicit import Product, product_ends, product_verdicts
 from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Rewards, Sparse, World
@@ -72,6 +73,11 @@ class Tables:
     """The product states an episode may start in (``[initial]`` for a certain start)."""
     start_cumulative: FloatArray
     """Their cumulative probabilities."""
+    shield: Shield | None = None
+    """The actions allowed per step (:mod:`mitlc.check.shield`), or none."""
+    shield_enforced: bool = True
+    """Whether :meth:`VecProduct.valid_actions` keeps to :attr:`shield` (else it only records
+    the blocked actions taken: an audit)."""
 
     @property
     def rewards(self) -> Rewards:
@@ -197,6 +203,12 @@ class Step:
     """The env's own reward of the step (``info["env_reward"]`` of wrapped envs)."""
     env_ended: BoolArray | None = None
     """Whether the env had ended by the end of the step (``info["env_ended"]``)."""
+    blocked: BoolArray | None = None
+    """With a shield: whether the step's action was one the shield blocks (only ever under
+    an audit: an enforced shield refuses them)."""
+    strayed: BoolArray | None = None
+    """With a shield: whether the episode has taken a blocked action so far, this step
+    included."""
 
     @property
     def done(self) -> BoolArray:
@@ -222,6 +234,7 @@ class VecProduct:
         self.actions_taken = np.zeros(num_envs, dtype=np.int64)
         self.rounds = np.zeros(num_envs, dtype=np.int64)
         self.returns = np.zeros(num_envs)
+        self.strayed = np.zeros(num_envs, dtype=np.bool_)
         self.observation = self._observe(self.state)
 
     # -- checkpoints ---------------------------------------------------------------------------
@@ -236,6 +249,7 @@ class VecProduct:
             "rounds": self.rounds.copy(),
             "returns": self.returns.copy(),
             "observation": self.observation.copy(),
+            "strayed": self.strayed.copy(),
             "rng": self.rng.bit_generator.state,
         }
 
@@ -257,6 +271,12 @@ class VecProduct:
                 raise ValueError(f"{name}: negative counts")
         for name in ("state", "mask", "steps", "actions_taken", "rounds", "returns", "observation"):
             setattr(self, name, np.array(saved[name]))
+        strayed = saved.get("strayed")  # runs saved before shields: none strayed
+        self.strayed = (
+            np.zeros(len(state), dtype=np.bool_)
+            if strayed is None
+            else np.array(strayed, dtype=np.bool_)
+        )
         self.rng.bit_generator.state = saved["rng"]
 
     # -- stepping ------------------------------------------------------------------------------
@@ -268,9 +288,25 @@ class VecProduct:
         return automaton
 
     def valid_actions(self) -> BoolArray:
-        """``valid[i, a]``: action ``a`` is available to episode ``i``."""
-        valid: BoolArray = self.tables.valid[self.state]
-        return valid
+        """``valid[i, a]``: action ``a`` is available to episode ``i`` (and, under an enforced
+        shield, allowed by it)."""
+        t = self.tables
+        valid: BoolArray = t.valid[self.state]
+        if t.shield is None or not t.shield_enforced:
+            return valid
+        return valid & self._allowed(t.choice[self.state], column=True)
+
+    def _allowed(self, choice: IntArray, column: bool = False) -> BoolArray:
+        """Whether the shield allows ``choice`` (one per episode, or with ``column`` a row of
+        them per episode) now: with the steps left and the frontier of each episode (the mask
+        of all sets once a round completed, as the shield's values have it)."""
+        t = self.tables
+        assert t.shield is not None
+        remaining = t.horizon - self.steps
+        mask = np.where(self.rounds > 0, t.all_sets, self.mask)
+        if column:
+            remaining, mask = remaining[:, None], mask[:, None]
+        return t.shield.allowed(remaining, mask, choice)
 
     def step(self, actions: IntArray) -> Step:
         """Take ``actions[i]`` in episode ``i`` (each must be valid); restart ended episodes."""
@@ -280,6 +316,14 @@ class VecProduct:
         if (choice < 0).any():
             bad = int(np.flatnonzero(choice < 0)[0])
             raise ValueError(f"action {int(actions[bad])} is not valid in episode {bad}")
+        blocked = None if t.shield is None else ~self._allowed(choice)
+        if blocked is not None and t.shield_enforced and blocked.any():
+            bad = int(np.flatnonzero(blocked)[0])
+            raise ValueError(
+                f"action {int(actions[bad])} is blocked by the shield in episode {bad}"
+            )
+        if blocked is not None:
+            self.strayed |= blocked
         uniform = self.rng.random(self.num_envs)
         nxt = draw(t.cumulative, t.indptr, t.targets, choice, uniform)
         jump = actions >= t.num_world_actions
@@ -312,6 +356,8 @@ class VecProduct:
             episode_steps=self.steps.copy(),
             next_automaton=np.maximum(t.automaton_state[nxt], 0),
             next_valid=t.valid[nxt],
+            blocked=blocked,
+            strayed=None if blocked is None else self.strayed.copy(),
         )
         self.state, self.mask, self.observation = nxt, mask, observation
         self._restart(result.done)
@@ -325,6 +371,7 @@ class VecProduct:
         for counter in (self.steps, self.actions_taken, self.rounds):
             counter[done] = 0
         self.returns[done] = 0.0
+        self.strayed[done] = False
         self.observation = np.where(done, self._observe(self.state), self.observation)
 
     def _starts(self, n: int) -> IntArray:

@@ -21,22 +21,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+import numpy as np
+
 from mitlc.check.solve import pmax_horizon
+from mitlc.learn.envs.vec import Tables
 from mitlc.learn.evaluation.exact import policy_success
 from mitlc.learn.evaluation.montecarlo import monte_carlo, wilson
 from mitlc.learn.held import HeldLog, never_held
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, batches
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
-from mitlc.worlds.model import IntArray
+from mitlc.worlds.model import BoolArray, IntArray
 
 
 @runtime_checkable
 class Memoryless(Protocol):
     """A policy that is a function of ``(frontier mask, product state)``."""
 
-    def choices(self) -> IntArray:
-        """``choices[mask, x]``: the product choice taken (-1 at the absorbing states)."""
+    def choices(self, valid: BoolArray | None = None) -> IntArray:
+        """``choices[mask, x]``: the product choice taken (-1 at the absorbing states) among
+        the actions ``valid[mask, x, a]`` (default: every valid one)."""
         ...
 
 
@@ -166,7 +170,7 @@ def _exact(
     )
     exact = None
     if not world.is_pomdp and isinstance(policy, Memoryless):
-        exact = policy_success(product, policy.choices(), horizon)
+        exact = policy_success(product, _choices(policy, setting.model()[2]), horizon)
     bounds, lower = None, None
     if world.is_pomdp:
         from mitlc.check.observed import ObservedBoundError, observed_bound
@@ -184,3 +188,21 @@ def _exact(
         except LimitError:
             bounds = None
     return optimum, exact, bounds, lower
+
+
+def _choices(policy: Memoryless, tables: Tables) -> IntArray:
+    """The policy's choices: ``choices[mask, x]``, or under an enforced shield, which it reads
+    at every step, ``choices[r - 1, done, mask, x]`` (:func:`policy_success`'s forms) among
+    the actions the shield allows with ``r`` steps left (the mask of all sets once a round
+    was completed, ``done``)."""
+    s = tables.shield
+    if s is None or not tables.shield_enforced:
+        return policy.choices()
+    masks = tables.all_sets + 1
+    chosen = np.empty((s.horizon, 2, masks, tables.num_states), dtype=np.int64)
+    for r in range(1, s.horizon + 1):
+        for done in (0, 1):
+            lookup = np.full(masks, tables.all_sets) if done else np.arange(masks)
+            allowed = s.allowed(np.array(r), lookup[:, None, None], tables.choice[None])
+            chosen[r - 1, done] = policy.choices(tables.valid[None] & allowed)
+    return chosen

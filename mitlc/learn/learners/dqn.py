@@ -62,7 +62,7 @@ from mitlc.learn.learners.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.worlds.model import IntArray
+from mitlc.worlds.model import BoolArray, IntArray
 
 
 class DQNPolicy(Policy):
@@ -81,11 +81,11 @@ class DQNPolicy(Policy):
         """The greedy valid action of each episode."""
         return greedy(self.values(env.observation, env.automaton, env.mask), env.valid_actions())
 
-    def choices(self) -> IntArray:
+    def choices(self, valid: BoolArray | None = None) -> IntArray:
         """``choices[mask, x]``: the product choice taken in state ``x`` with frontier ``mask``
-        (-1 at the absorbing states), for :func:`mitlc.learn.evaluation.exact.policy_success`. The
-        policy
-        is memoryless over (mask, product state) on an MDP, where the observation is the cell."""
+        (-1 at the absorbing states) among the actions ``valid[mask, x]`` (default: every
+        valid one), for :func:`mitlc.learn.evaluation.exact.policy_success`. The policy is
+        memoryless over (mask, product state) on an MDP, where the observation is the cell."""
         t = self.tables
         assert t is not None, "exact evaluation needs the finite product"
         states = np.arange(t.num_states)
@@ -94,7 +94,8 @@ class DQNPolicy(Policy):
         chosen = np.full((t.all_sets + 1, t.num_states), -1, dtype=np.int64)
         for mask in range(t.all_sets + 1):
             masks = np.full(t.num_states, mask)
-            best = greedy(self.values(cells, automaton, masks), t.valid)
+            allowed = t.valid if valid is None else valid[mask]
+            best = greedy(self.values(cells, automaton, masks), allowed)
             chosen[mask] = t.choice[states, best]
         chosen[:, t.world_state < 0] = -1
         return chosen

@@ -28,7 +28,7 @@ from mitlc.learn.learners.base import (
     transition_signal,
 )
 from mitlc.learn.learners.crm import Batch, Counterfactuals, concatenate, select
-from mitlc.worlds.model import FloatArray, IntArray
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 
 class TabularPolicy(Policy):
@@ -39,13 +39,15 @@ class TabularPolicy(Policy):
 
     def act(self, env: Episodes) -> IntArray:
         """The greedy action of each episode."""
-        return masked_argmax(self.q_table[env.mask, env.state], self.tables.valid[env.state])
+        return masked_argmax(self.q_table[env.mask, env.state], env.valid_actions())
 
-    def choices(self) -> IntArray:
-        """``choices[mask, x]``: the product choice the policy takes (-1 where none)."""
+    def choices(self, valid: BoolArray | None = None) -> IntArray:
+        """``choices[mask, x]``: the product choice the policy takes (-1 where none), among
+        the actions ``valid[mask, x]`` (default: every valid one)."""
+        allowed = np.broadcast_to(self.tables.valid, self.q_table.shape) if valid is None else valid
         best = masked_argmax(
             self.q_table.reshape(-1, self.q_table.shape[-1]),
-            np.tile(self.tables.valid, (self.q_table.shape[0], 1)),
+            allowed.reshape(-1, self.q_table.shape[-1]),
         ).reshape(self.q_table.shape[:2])
         states = np.arange(self.tables.num_states)
         chosen: IntArray = self.tables.choice[states[None, :], best]
@@ -84,7 +86,7 @@ class QLearner(Learner):
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
         state, mask = env.state, env.mask
-        valid = self.tables.valid[state]
+        valid = env.valid_actions()  # a shield's, where the run has one
         greedy = masked_argmax(self.q_table[mask, state], valid)
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy)

@@ -53,6 +53,20 @@ class Tally:
         self.window_return = 0.0
         self.last_rate = self.last_return = 0.0
         self.seconds = 0.0
+        # Over the whole run: episodes that ended violated; with a shield, the actions taken
+        # that it blocks and the violated episodes that took one (runs saved before: 0).
+        self.violations = self.blocked = self.preventable = 0
+        self.shielded = False
+
+    def count(self, step: Any) -> None:
+        """Add the violations, and with a shield the blocked actions, of a step (a
+        :class:`~mitlc.learn.envs.vec.Step` or an open world's)."""
+        violated = step.terminated & ~step.success
+        self.violations += int(violated.sum())
+        if getattr(step, "blocked", None) is not None:
+            self.shielded = True
+            self.blocked += int(step.blocked.sum())
+            self.preventable += int((violated & step.strayed).sum())
 
     def state_dict(self) -> dict[str, Any]:
         return dict(vars(self))
@@ -75,7 +89,11 @@ def log_window(metrics: Any, tally: Tally, epsilon: float) -> None:
         "return": round(tally.last_return, 6),
         "epsilon": round(epsilon, 6),
         "seconds": round(tally.seconds, 3),
+        "violations": tally.violations,
     }
+    if tally.shielded:
+        line["blocked_actions"] = tally.blocked
+        line["preventable_violations"] = tally.preventable
     metrics.write(json.dumps(line) + "\n")
     metrics.flush()
     tally.window_count = tally.window_success = 0
