@@ -387,6 +387,7 @@ class _Run:
                 tally.window_count += 1
                 tally.window_success += bool(info.get("is_success", False))
                 tally.window_return += float(info["episode"]["r"])
+                tally.violations += info.get("verdict") == "violated"
         tally.seconds = time.perf_counter() - self.clock
         epsilon = self.epsilon()
         logged = steps // s.log_every > before // s.log_every

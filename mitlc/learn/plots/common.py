@@ -36,6 +36,8 @@ class Metrics:
     success_rate: FloatArray
     mean_return: FloatArray
     epsilon: FloatArray
+    violations: FloatArray | None = None
+    """The training episodes ended violated so far (runs that record them: all lines)."""
 
 
 def read_metrics(directory: Path) -> Metrics:
@@ -44,11 +46,16 @@ def read_metrics(directory: Path) -> Metrics:
     path = directory / METRICS
     if not path.exists():  # a FIFO or a device there is refused by read_metrics_rows
         raise PlotError(f"{directory}: no {METRICS} (not a run directory, or not started)")
-    rows = [[row[name] for name in METRIC_FIELDS] for row in read_metrics_rows(path)]
+    read = read_metrics_rows(path)
+    rows = [[row[name] for name in METRIC_FIELDS] for row in read]
     if not rows:
         raise PlotError(f"{path}: no metrics yet (the run has not logged a window)")
     columns = np.asarray(rows, dtype=np.float64).T
-    return Metrics(columns[0], columns[1], columns[2], columns[3])
+    counts = [row.get("violations") for row in read]
+    violations = None
+    if all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in counts):
+        violations = np.asarray(counts, dtype=np.float64)
+    return Metrics(columns[0], columns[1], columns[2], columns[3], violations)
 
 
 def png_bytes(figure: Figure) -> bytes:
@@ -84,6 +91,11 @@ def learning_curve(metrics: Metrics, title: str) -> Figure:
         metrics.episodes, metrics.mean_return, color="tab:blue", marker=marker, markersize=3
     )
     bottom.set_ylabel("mean return per episode")
+    if metrics.violations is not None:
+        right = bottom.twinx()
+        right.plot(metrics.episodes, metrics.violations, color="tab:red", linestyle=":")
+        right.set_ylabel("violations so far (dotted)", color="tab:red")
+        right.spines[["top"]].set_visible(False)
     bottom.set_xlabel("episodes")
     bottom.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:,.0f}"))
     for axes in (top, bottom):
