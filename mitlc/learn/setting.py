@@ -100,11 +100,11 @@ def _shielded(
     """``simulated`` with the shield the settings ask for (:mod:`mitlc.check.shield`)."""
     from mitlc.check.shield import shield
 
-    if config.algo.startswith("sb3-"):
+    if config.algo.startswith("sb3-") and config.algo != "sb3-maskable-ppo":
         raise ConfigError(
-            f"--algo {config.algo}: the shield reaches mitlc's own learners (q, dqn, drqn) "
-            "for now; Stable-Baselines3's MaskablePPO through the task wrapper's action_masks "
-            "is not wired yet"
+            f"--algo {config.algo} reads no action masks, so it cannot keep to a shield: use "
+            "q, dqn, drqn or sb3-maskable-ppo (sb3-contrib's MaskablePPO reads the task "
+            "wrapper's action_masks())"
         )
     if world.is_pomdp:
         raise ConfigError(

@@ -39,17 +39,23 @@ cell, before the first action).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
+import numpy as np
 
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.gym.wrapper import PENDING, TaskObs, TaskWrapper
-from mitlc.product.explicit import automaton_letters
+from mitlc.product.explicit import Product, automaton_letters
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES
 from mitlc.task.potential import world_potential
 from mitlc.worlds import World, load_world
 from mitlc.worlds.grid_env import GridEnv, WorldLabels
+from mitlc.worlds.model import BoolArray
+
+if TYPE_CHECKING:  # the check stage's data, read here as a plain value (no import at run time)
+    from mitlc.check.shield import Shield
 
 ENV_ID = "mitlc/Product-v0"
 """The gymnasium id: ``gymnasium.make(ENV_ID, world=..., automaton=...)``."""
@@ -73,6 +79,9 @@ class ProductEnv(TaskWrapper):
         flatten: bool = False,
         task_obs: TaskObs = "state",
         potential: float | None = None,
+        shield: Shield | None = None,
+        product: Product | None = None,
+        shield_audit: bool = False,
     ) -> None:
         automaton_letters(world, automaton.propositions)  # the world must label the task
         super().__init__(
@@ -90,6 +99,43 @@ class ProductEnv(TaskWrapper):
         self.world: World = world
         self.automaton: DigitalAutomaton = automaton
         self._table = None if potential is None else world_potential(world, automaton, potential)
+        self._shield = None
+        if shield is not None:
+            if product is None:
+                raise ValueError("a shield needs the product it was computed on")
+            self._shield = _ProductShield(shield, product, world.num_states)
+        self._shield_audit = shield_audit
+
+    def action_masks(self) -> BoolArray:
+        """The valid actions (:meth:`TaskWrapper.action_masks`), and with a shield that is
+        kept to only those it allows now (:mod:`mitlc.check.shield`)."""
+        masks = super().action_masks()
+        if self._shield is None or self._shield_audit:
+            return masks
+        return masks & self._shield_masks(len(masks))
+
+    def _shield_masks(self, width: int) -> BoolArray:
+        assert self._shield is not None
+        return self._shield.masks(
+            self.world_state, self.automaton_state, self.frontier, self.rounds,
+            self.horizon - self.steps, width,
+        )  # fmt: skip
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """:meth:`TaskWrapper.step`; with a shield ``info["shield_blocked"]`` says whether the
+        action was a valid one the shield blocks (an agent that reads the masks never takes
+        one), and ``info["action_mask"]`` is the shielded mask."""
+        if self._shield is None:
+            return super().step(action)
+        valid = super().action_masks()
+        index = int(action)
+        inside = 0 <= index < len(valid)
+        blocked = inside and bool(valid[index]) and not self._shield_masks(len(valid))[index]
+        obs, reward, terminated, truncated, info = super().step(action)
+        info["shield_blocked"] = blocked
+        if "action_mask" in info and not (terminated or truncated):
+            info["action_mask"] = self.action_masks()
+        return obs, reward, terminated, truncated, info
 
     def potential(self) -> float:
         """The task's shaping potential now, the world's distances being the fewest steps
@@ -122,6 +168,37 @@ class ProductEnv(TaskWrapper):
         verdict = VERDICT_NAMES[self.monitor.verdict(q)]
         status = f"step {self.steps}/{self.horizon}  q={q} ({verdict})  rounds={self.rounds}"
         return f"{grid}\n{status}"
+
+
+class _ProductShield:
+    """A shield read from the on-the-fly product: the product state of ``(s, q)`` found among
+    the explicit product's (codes ``q * S + s``, sorted), its choices in the wrapper's action
+    order (world actions, then the jumps of ``q`` in order)."""
+
+    def __init__(self, shield: Shield, product: Product, num_s: int) -> None:
+        self.shield, self.product, self.num_s = shield, product, num_s
+        live = np.flatnonzero(product.world_state >= 0)
+        codes = product.automaton_state[live].astype(np.int64) * num_s + product.world_state[live]
+        order = np.argsort(codes)
+        self.codes, self.states = codes[order], live[order]
+        self.all_sets = (1 << product.num_sets) - 1
+
+    def masks(
+        self, s: int, q: int, frontier: int, rounds: int, remaining: int, width: int
+    ) -> BoolArray:
+        """Per action of the wrapper (``width`` of them), whether the shield allows it."""
+        allowed = np.ones(width, dtype=np.bool_)
+        code = q * self.num_s + s
+        at = int(np.searchsorted(self.codes, code))
+        if at == len(self.codes) or self.codes[at] != code:  # decided: nothing to shield
+            return allowed
+        x = int(self.states[at])
+        lo, hi = int(self.product.choice_ptr[x]), int(self.product.choice_ptr[x + 1])
+        count = min(hi - lo, width)
+        mask = self.all_sets if rounds > 0 else frontier
+        choices = np.arange(lo, lo + count)
+        allowed[:count] = self.shield.allowed(np.array(remaining), np.array(mask), choices)
+        return allowed
 
 
 def make_env(

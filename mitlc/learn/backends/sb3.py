@@ -134,6 +134,9 @@ def wrapped_env(setting: Setting) -> Any:
     options: dict[str, Any] = {"task_obs": "clocks" if clocks else "state"}
     if config.shaping:
         options["potential"] = config.shaping_reach
+    if setting.tables is not None and setting.tables.shield is not None:
+        options["shield"], options["product"] = setting.tables.shield, setting.product
+        options["shield_audit"] = not setting.tables.shield_enforced
     env: Any = task_env(setting.world, setting.automaton, flatten=True, **options)
     if config.shaping:
         env = ShapedReward(env, scale=config.shaping, gamma=config.discount.gamma)
@@ -362,6 +365,8 @@ class _Run:
         self.stopped, self.beat, self.logged_at = False, 0, tally.steps
         self.metrics: Any = None
         self.clock = time.perf_counter() - tally.seconds
+        self.strayed: list[bool] = []
+        """Per env: whether its episode took an action the shield blocks."""
 
     def epsilon(self) -> float:
         """DQN's exploration rate (0 for the others, which explore by sampling or noise)."""
@@ -381,13 +386,22 @@ class _Run:
         ended, log, checkpoint, show progress; whether to go on."""
         tally, s = self.tally, self.config.sb3
         before, tally.steps = tally.steps, steps
-        for done, info in zip(dones, infos, strict=True):
+        if len(self.strayed) != len(infos):
+            self.strayed = [False] * len(infos)
+        for i, (done, info) in enumerate(zip(dones, infos, strict=True)):
+            if "shield_blocked" in info:  # a shielded (or audited) run
+                tally.shielded = True
+                tally.blocked += bool(info["shield_blocked"])
+                self.strayed[i] = self.strayed[i] or bool(info["shield_blocked"])
             if done:
+                violated = info.get("verdict") == "violated"
                 tally.episodes += 1
                 tally.window_count += 1
                 tally.window_success += bool(info.get("is_success", False))
                 tally.window_return += float(info["episode"]["r"])
-                tally.violations += info.get("verdict") == "violated"
+                tally.violations += violated
+                tally.preventable += violated and self.strayed[i]
+                self.strayed[i] = False
         tally.seconds = time.perf_counter() - self.clock
         epsilon = self.epsilon()
         logged = steps // s.log_every > before // s.log_every
