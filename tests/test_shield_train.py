@@ -89,7 +89,7 @@ def test_eval_reports_the_exact_success_of_the_shielded_policy(tmp_path: Path) -
 @pytest.mark.parametrize(
     ("world", "args", "message"),
     [
-        ("paper/case2.yaml", ["--shield", "1"], "POMDP"),
+        ("paper/case2.yaml", ["--shield", "1", "--algo", "sb3-maskable-ppo"], "POMDP"),
         ("paper/case1.yaml", ["--shield", "1", "--algo", "sb3-ppo"], "sb3-ppo"),
         ("paper/case1.yaml", ["--shield", "1.5"], "training.shield"),
         ("paper/case1.yaml", ["--shield-violation", "-0.1"], "training.shield_violation"),

@@ -207,10 +207,7 @@ class _Passes:
         )
         q_worst = np.stack([m @ self.worst.ravel() for m in self.matrices])
         q_risk = np.stack([m @ self.risk.ravel() for m in self.matrices])
-        least = np.minimum.reduceat(np.where(is_jump, np.inf, self.plain @ self.least), ptr)
-        least[VIOLATED], least[SATISFIED] = 1.0, 0.0
-        for source, target, _ in self.jumps:  # in pmax_horizon's order (_settle)
-            least[source] = min(least[source], least[target])
+        least = _least_step(self.plain, self.least, ptr, is_jump, self.jumps)
         ok = self._tests(q_worst, q_risk, best[:, owner], least[owner]) & ~is_jump
         worst = _reduce(np.minimum, np.where(ok, q_worst, np.inf), ptr)
         risk = _reduce(np.maximum, np.where(ok, q_risk, -np.inf), ptr)
@@ -265,6 +262,35 @@ class _Passes:
         low = _reduce(np.minimum, risk, ptr)
         kept |= none[:, owner] & (risk <= low[:, owner] + TOLERANCE)
         return kept
+
+
+def least_violation(product: Product, horizon: int) -> FloatArray:
+    """``U[horizon][x]``: the least probability, over all policies, of a violation (entering
+    the violated state) within ``horizon`` steps from each product state."""
+    passes = _Passes(product, None, 0.0)
+    least = passes.least
+    for _ in range(horizon):
+        least = _least_step(
+            passes.plain, least, product.choice_ptr[:-1], passes.is_jump, passes.jumps
+        )
+    return least
+
+
+def _least_step(
+    plain: csr_matrix,
+    least: FloatArray,
+    ptr: IntArray,
+    is_jump: BoolArray,
+    jumps: list[tuple[int, int, int]],
+) -> FloatArray:
+    """One step of ``U``: the least over each state's world choices of the violation reached
+    from their successors' ``least``, then the epsilon jumps (no step) in ``pmax_horizon``'s
+    order (``_settle``)."""
+    after: FloatArray = np.minimum.reduceat(np.where(is_jump, np.inf, plain @ least), ptr)
+    after[VIOLATED], after[SATISFIED] = 1.0, 0.0
+    for source, target, _ in jumps:
+        after[source] = min(after[source], after[target])
+    return after
 
 
 def _reduce(ufunc: np.ufunc, values: FloatArray, ptr: IntArray) -> FloatArray:

@@ -98,7 +98,8 @@ def _shielded(
     world: World, product: Product, simulated: Tables, config: TrainConfig, clock: Deadline
 ) -> Tables:
     """``simulated`` with the shield the settings ask for (:mod:`mitlc.check.shield`)."""
-    from mitlc.check.shield import shield
+    from mitlc.check.shield import Shield, ShieldError, shield
+    from mitlc.check.shield_observed import ObservedShield, observed_shield
 
     if config.algo.startswith("sb3-") and config.algo != "sb3-maskable-ppo":
         raise ConfigError(
@@ -106,18 +107,22 @@ def _shielded(
             "q, dqn, drqn or sb3-maskable-ppo (sb3-contrib's MaskablePPO reads the task "
             "wrapper's action_masks())"
         )
+    theta = config.shield if config.shield > 0 else None
+    delta = config.shield_violation if config.shield_violation < 1 else None
+    made: Shield | ObservedShield
     if world.is_pomdp:
-        raise ConfigError(
-            f"{world.name}: a shield over a POMDP's observations is not built yet; shields "
-            "apply to MDPs (drop --shield / --shield-violation)"
-        )
-    made = shield(
-        product,
-        world.horizon,
-        theta=config.shield if config.shield > 0 else None,
-        delta=config.shield_violation if config.shield_violation < 1 else None,
-        deadline=clock,
-    )
+        if config.algo.startswith("sb3-"):
+            raise ConfigError(
+                f"{world.name}: a POMDP's shield (over its observations) reaches mitlc's own "
+                "learners (q, dqn, drqn), not the SB3 backends"
+            )
+        try:
+            made = observed_shield(world, product, world.horizon, theta=theta, delta=delta,
+                                   deadline=clock)  # fmt: skip
+        except ShieldError as err:
+            raise ConfigError(f"{world.name}: {err}") from None
+    else:
+        made = shield(product, world.horizon, theta=theta, delta=delta, deadline=clock)
     return replace(simulated, shield=made, shield_enforced=not config.shield_audit)
 
 

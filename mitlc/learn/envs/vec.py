@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.check.shield import Shield
+from mitlc.check.shield_observed import ObservedShield
 from mitlc.product.explicit import Product, product_ends, product_verdicts
 from mitlc.task import rules
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Rewards, Sparse, World
@@ -73,8 +74,9 @@ class Tables:
     """The product states an episode may start in (``[initial]`` for a certain start)."""
     start_cumulative: FloatArray
     """Their cumulative probabilities."""
-    shield: Shield | None = None
-    """The actions allowed per step (:mod:`mitlc.check.shield`), or none."""
+    shield: Shield | ObservedShield | None = None
+    """The actions allowed per step (:mod:`mitlc.check.shield`; over a POMDP's observations,
+    :mod:`mitlc.check.shield_observed`), or none."""
     shield_enforced: bool = True
     """Whether :meth:`VecProduct.valid_actions` keeps to :attr:`shield` (else it only records
     the blocked actions taken: an audit)."""
@@ -235,6 +237,7 @@ class VecProduct:
         self.rounds = np.zeros(num_envs, dtype=np.int64)
         self.returns = np.zeros(num_envs)
         self.strayed = np.zeros(num_envs, dtype=np.bool_)
+        self._shield_now: BoolArray | None = None
         self.observation = self._observe(self.state)
 
     # -- checkpoints ---------------------------------------------------------------------------
@@ -271,6 +274,7 @@ class VecProduct:
                 raise ValueError(f"{name}: negative counts")
         for name in ("state", "mask", "steps", "actions_taken", "rounds", "returns", "observation"):
             setattr(self, name, np.array(saved[name]))
+        self._shield_now = None
         strayed = saved.get("strayed")  # runs saved before shields: none strayed
         self.strayed = (
             np.zeros(len(state), dtype=np.bool_)
@@ -294,19 +298,26 @@ class VecProduct:
         valid: BoolArray = t.valid[self.state]
         if t.shield is None or not t.shield_enforced:
             return valid
-        return valid & self._allowed(t.choice[self.state], column=True)
+        return valid & self._shielded()
 
-    def _allowed(self, choice: IntArray, column: bool = False) -> BoolArray:
-        """Whether the shield allows ``choice`` (one per episode, or with ``column`` a row of
-        them per episode) now: with the steps left and the frontier of each episode (the mask
-        of all sets once a round completed, as the shield's values have it)."""
+    def _shielded(self) -> BoolArray:
+        """``allowed[i, a]``: the shield allows action ``a`` to episode ``i`` now, with its
+        steps left and its frontier (the mask of all sets once a round completed, as the
+        shield's values have it), and in a POMDP its observation and automaton state."""
+        if self._shield_now is not None:  # asked again before the episodes moved
+            return self._shield_now
         t = self.tables
         assert t.shield is not None
         remaining = t.horizon - self.steps
         mask = np.where(self.rounds > 0, t.all_sets, self.mask)
-        if column:
-            remaining, mask = remaining[:, None], mask[:, None]
-        return t.shield.allowed(remaining, mask, choice)
+        if isinstance(t.shield, ObservedShield):
+            seen = t.shield.actions(remaining, mask, self.observation, self.automaton)
+            allowed = np.ones((self.num_envs, t.num_actions), dtype=np.bool_)
+            allowed[:, : seen.shape[1]] = seen
+        else:
+            allowed = t.shield.allowed(remaining[:, None], mask[:, None], t.choice[self.state])
+        self._shield_now = allowed
+        return allowed
 
     def step(self, actions: IntArray) -> Step:
         """Take ``actions[i]`` in episode ``i`` (each must be valid); restart ended episodes."""
@@ -316,7 +327,10 @@ class VecProduct:
         if (choice < 0).any():
             bad = int(np.flatnonzero(choice < 0)[0])
             raise ValueError(f"action {int(actions[bad])} is not valid in episode {bad}")
-        blocked = None if t.shield is None else ~self._allowed(choice)
+        blocked = None
+        if t.shield is not None:
+            rows = np.arange(self.num_envs)
+            blocked = ~self._shielded()[rows, np.where(inside, actions, 0)] & inside
         if blocked is not None and t.shield_enforced and blocked.any():
             bad = int(np.flatnonzero(blocked)[0])
             raise ValueError(
@@ -360,6 +374,7 @@ class VecProduct:
             strayed=None if blocked is None else self.strayed.copy(),
         )
         self.state, self.mask, self.observation = nxt, mask, observation
+        self._shield_now = None
         self._restart(result.done)
         return result
 
