@@ -23,6 +23,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from mitlc.check.shield import Shield
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.envs.vec import Tables
 from mitlc.learn.evaluation.exact import policy_success
@@ -196,7 +197,7 @@ def _choices(policy: Memoryless, tables: Tables) -> IntArray:
     the actions the shield allows with ``r`` steps left (the mask of all sets once a round
     was completed, ``done``)."""
     s = tables.shield
-    if s is None or not tables.shield_enforced:
+    if not isinstance(s, Shield) or not tables.shield_enforced:  # none, or a POMDP's
         return policy.choices()
     masks = tables.all_sets + 1
     chosen = np.empty((s.horizon, 2, masks, tables.num_states), dtype=np.int64)
