@@ -45,7 +45,8 @@ def check_command(
         Path | None,
         typer.Option(
             "--policy",
-            help="Write the optimal policy (JSON) here; for a POMDP, the observation-based one.",
+            help="Write the optimal policy (JSON) here; for a POMDP, the observation-based one; "
+            "for a world with costs, the one of least cost among the best (per step).",
         ),
     ] = None,
     export_drn: Annotated[
@@ -103,7 +104,8 @@ def check_command(
         )
     report = check(world, digital, max_product_states=max_product_states, deadline=deadline)
     if export_drn is not None:
-        write_atomically(export_drn, to_drn(report.product).encode("utf-8"))
+        costs = None if report.cost is None else report.cost.immediate
+        write_atomically(export_drn, to_drn(report.product, costs).encode("utf-8"))
     if export_dot is not None:
         from mitlc.check.drn import to_product_dot
 
@@ -127,6 +129,10 @@ def check_command(
             data: object = _observed_policy(world, observed)
         elif world.is_pomdp:
             raise UsageError(f"mitlc: --policy: no observation-based policy ({why})")
+        elif report.cost is not None:
+            from mitlc.check.costs import policy_data
+
+            data = policy_data(report.cost, report.product, world, digital)
         else:
             data = report.policy_data(world, digital)
         write_atomically(policy, (json_dumps(data) + "\n").encode("utf-8"))

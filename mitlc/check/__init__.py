@@ -7,8 +7,10 @@ from dataclasses import dataclass
 from types import EllipsisType
 from typing import Any
 
+from mitlc.check.costs import LeastCost, least_cost
 from mitlc.check.solve import Solution, pmax, pmax_horizon
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
+from mitlc.product.costs import product_costs
 from mitlc.product.explicit import Product, build_product, start_average
 from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
@@ -26,6 +28,9 @@ class CheckReport:
     horizon: int
     seconds: float
     solution: Solution
+    cost: LeastCost | None = None
+    """For a world with costs: the least expected cost within the horizon among the policies
+    of best success (:mod:`mitlc.check.costs`), and that policy."""
 
     @property
     def product_states(self) -> int:
@@ -48,6 +53,7 @@ class CheckReport:
             "acceptance_sets": self.product.num_sets,
             "pmax": self.pmax,
             "pmax_horizon": self.pmax_horizon,
+            **({"min_cost_horizon": self.cost.value} if self.cost is not None else {}),
             "horizon": self.horizon,
             "seconds": round(self.seconds, 6),
             **self._starts(),
@@ -100,7 +106,9 @@ def check(
     memory_limit: float | EllipsisType | None = ...,
     deadline: Deadline | None = None,
 ) -> CheckReport:
-    """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy.
+    """Build the product and compute ``pmax`` and ``pmax_horizon`` with an optimal policy,
+    and, for a world with costs, the least expected cost among the policies of best success
+    within the horizon (:func:`mitlc.check.costs.least_cost`).
 
     Refuses a product past ``max_product_states``
     (:class:`mitlc.product.explicit.ProductSizeError`); stops with
@@ -110,14 +118,19 @@ def check(
     start = time.perf_counter()
     clock = Deadline.of(deadline, time_limit, "check", memory_limit)
     product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
+    costs = None if world.costs is None else product_costs(world, automaton, product)
     solution = pmax(product, deadline=clock.at("pmax"))
-    within, _ = pmax_horizon(
+    within, history = pmax_horizon(
         product,
         world.horizon,
-        keep_history=False,
+        keep_history=costs is not None,
         deadline=clock.at("pmax_horizon"),
         layered=solution.layers,
     )
+    cost = None
+    if costs is not None:
+        stage = clock.at("the least cost")
+        cost = least_cost(product, costs.choice, world.horizon, values=history, deadline=stage)
     return CheckReport(
         world=world.name,
         spec=automaton.formula,
@@ -127,4 +140,5 @@ def check(
         horizon=world.horizon,
         seconds=time.perf_counter() - start,
         solution=solution,
+        cost=cost,
     )

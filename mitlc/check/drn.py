@@ -1,5 +1,6 @@
 """The product in Storm's explicit DRN format, for checking mitlc against Storm.
 
+With costs, each action carries its expected immediate cost in the reward model ``cost``.
 State labels: ``init``; ``acc0`` … on the states whose world-action choices are in that
 acceptance set (the marks of a product transition depend only on its source, so this
 state-based reading accepts the same runs; jumps never return to their source); ``satisfied``
@@ -24,6 +25,7 @@ the average of Storm's values at those states weighted by them.
 from __future__ import annotations
 
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, product_ends
+from mitlc.worlds.model import FloatArray
 
 
 def reachable(product: Product) -> list[int]:
@@ -64,8 +66,13 @@ def starts(product: Product) -> dict[int, float]:
     return dict(product.starts)
 
 
-def to_drn(product: Product) -> str:
-    """The DRN text of ``product`` (its reachable part, numbered breadth-first)."""
+def to_drn(product: Product, costs: FloatArray | None = None) -> str:
+    """The DRN text of ``product`` (its reachable part, numbered breadth-first); with
+    ``costs`` (an expected immediate cost per choice: ``ProductCosts.choice`` of
+    :func:`mitlc.product.costs.product_costs`), a reward model ``cost`` of those action
+    rewards, so that the least expected cost within ``H`` steps among the policies succeeding
+    with probability at least ``p`` is Storm's
+    ``multi(P>=p [F<=H "satisfied"], R{"cost"}min=? [C<=H])``."""
     states = breadth_first(product)
     number = {x: i for i, x in enumerate(states)}
     choices = sum(int(product.choice_ptr[x + 1] - product.choice_ptr[x]) for x in states)
@@ -81,7 +88,7 @@ def to_drn(product: Product) -> str:
         "@parameters",
         "",
         "@reward_models",
-        "",
+        "cost" if costs is not None else "",
         "@nr_states",
         str(len(states)),
         "@nr_choices",
@@ -104,7 +111,8 @@ def to_drn(product: Product) -> str:
         head = f"state {number[x]}"
         lines.append(f"{head} " + " ".join(labels) if labels else head)
         for index, c in enumerate(range(lo, hi)):
-            lines.append(f"\taction {index}")
+            reward = f" [{float(costs[c])!r}]" if costs is not None else ""
+            lines.append(f"\taction {index}{reward}")
             for j in range(int(t.indptr[c]), int(t.indptr[c + 1])):
                 lines.append(f"\t\t{number[int(t.targets[j])]} : {float(t.probs[j])!r}")
     return "\n".join(lines) + "\n"

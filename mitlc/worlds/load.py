@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -33,6 +33,7 @@ from mitlc.inputs import bad_utf8, read_head
 from mitlc.limits import MAX_WORLD_BYTES
 from mitlc.syntax import atoms, parse, read_spec
 from mitlc.worlds import gym_world, plane_schema, safe_yaml
+from mitlc.worlds.costs import Costs, action_problems, read_costs
 from mitlc.worlds.grid import (
     FieldPath,
     Layout,
@@ -179,7 +180,8 @@ def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[Field
                 model = _env_model(loc[:-1])
                 fields = [f.alias or n for n, f in model.model_fields.items()]
             else:
-                fields = list(MODELS.get(tuple(map(str, loc[:-1])), WorldFile).model_fields)
+                model = MODELS.get(_grid_key(loc[:-1]), WorldFile)
+                fields = [f.alias or n for n, f in model.model_fields.items()]
             close = difflib.get_close_matches(str(loc[-1]), fields, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else f" (known: {', '.join(fields)})"
             found.append((path, f"unknown field{hint}", True))
@@ -190,6 +192,15 @@ def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[Field
         else:
             found.append((path, _message(kind, item["msg"], item.get("input"), ctx), at_key))
     return found
+
+
+def _grid_key(loc: tuple[str | int, ...]) -> tuple[str, ...]:
+    """The key of :data:`~mitlc.worlds.schema.MODELS` at ``loc``: a list index, or a priced
+    proposition's name, as ``*``."""
+    return tuple(
+        "*" if isinstance(x, int) or (i == 2 and loc[:2] == ("costs", "propositions")) else x
+        for i, x in enumerate(loc)
+    )
 
 
 def _is_tag(loc: tuple[str | int, ...], i: int) -> bool:
@@ -211,7 +222,11 @@ def _is_env_tag(loc: tuple[str | int, ...], i: int) -> bool:
 def _env_model(loc: tuple[str | int, ...]) -> type[BaseModel]:
     """The model of an env world file at ``loc`` (a label's name read as ``*``)."""
     key = tuple(
-        "*" if (i == 1 and loc[0] == "labels") or isinstance(x, int) else str(x)
+        "*"
+        if (i == 1 and loc[0] == "labels")
+        or (i == 2 and loc[:2] == ("costs", "propositions"))
+        or isinstance(x, int)
+        else str(x)
         for i, x in enumerate(loc)
     )
     return ENV_MODELS.get(key, EnvWorldFile)
@@ -416,10 +431,11 @@ def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
     spec, spec_source, propositions = _load_spec(world, path, source, task)
     missing = [p for p in propositions if p not in world.labels]
     _require_labelled(path, source, (spec, spec_source), missing, world.labels, "holds in no state")
+    costs, propositions = _world_costs(world, path, source, propositions, None)
     try:
         env = gym_world.make_env(world.env)
         try:
-            return gym_world.build_world(
+            built = gym_world.build_world(
                 world,
                 env,
                 name=world.name or path.stem,
@@ -431,6 +447,33 @@ def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
             env.close()
     except gym_world.GymWorldError as err:
         raise WorldError(filename, [source.locate(p, m) for p, m in err.found]) from None
+    if costs is None:
+        return built
+    found = action_problems(costs, built.actions)
+    if found:
+        raise WorldError(filename, [source.locate(p, m, d) for p, m, d in found])
+    return replace(built, costs=costs)
+
+
+def _world_costs(
+    world: WorldFile | EnvWorldFile,
+    path: Path,
+    source: _Source,
+    task: tuple[str, ...],
+    actions: Sequence[str] | None,
+) -> tuple[Costs | None, tuple[str, ...]]:
+    """The file's costs (:func:`mitlc.worlds.costs.read_costs`; a :class:`WorldError` with
+    every problem), and the world's propositions: the ``task``'s and those the costs read."""
+    if world.costs is None:
+        return None, task
+
+    def where(field: FieldPath) -> str:
+        return source.locate(field, "").render(str(path)).removesuffix(": ")
+
+    costs, found = read_costs(world.costs, world.labels.keys(), task, actions, where)
+    if found:
+        raise WorldError(str(path), [source.locate(p, m, d) for p, m, d in found])
+    return costs, tuple(sorted(set(task) | costs.atoms()))
 
 
 def load_world(path: str | Path, spec: str | None = None) -> World:
@@ -458,6 +501,8 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
     labelled = {p: set(world.labels.get(p, ())) for p in propositions}
     missing = [p for p in propositions if not labelled[p]]
     _require_labelled(path, source, (spec, spec_source), missing, world.labels, "labels no cell")
+    costs, propositions = _world_costs(world, path, source, propositions, world.actions)
+    labelled = {p: set(world.labels.get(p, ())) for p in propositions}
     letters = [
         sum(1 << i for i, p in enumerate(propositions) if cell in labelled[p]) for cell in cells
     ]
@@ -485,6 +530,7 @@ def load_world(path: str | Path, spec: str | None = None) -> World:
         discount=world.discount,
         rewards=reward.rewards(),
         observations=observations,
+        costs=costs,
     )
 
 

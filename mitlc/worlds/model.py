@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from mitlc.worlds.costs import Costs
+
 IntArray = npt.NDArray[np.int64]
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -107,6 +109,9 @@ class World:
     world with a single start state); otherwise the ``(state, probability)`` pairs of positive
     probability, sorted by state, with ``start`` the most probable of them (the lowest id on
     ties). A world made from a gymnasium env takes it from ``initial_state_distrib``."""
+    costs: Costs | None = None
+    """What the steps of an episode cost beside its success (``costs:``; ``None``: none), read
+    through :func:`mitlc.product.costs.product_costs`."""
 
     @property
     def num_states(self) -> int:

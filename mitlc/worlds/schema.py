@@ -262,6 +262,91 @@ class Reward(_Model):
         )
 
 
+def _proposition_cost(value: object) -> object:
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        if not _is_number(value):
+            raise _fail("a number", value)
+        return {"hold": value}
+    if isinstance(value, dict):
+        return value
+    raise _fail("a number (its hold cost) or {hold: number, start: number}", value)
+
+
+class PropositionCost(_Model):
+    """What a step arriving in a position where the proposition holds pays (a negative cost is
+    a reward)."""
+
+    hold: Number = Field(default=0.0, description="Paid on every step arriving where it holds.")
+    start: Number = Field(
+        default=0.0,
+        description="Paid on every step arriving where it holds from where it did not hold.",
+    )
+
+
+PropositionCostEntry = Annotated[
+    PropositionCost,
+    BeforeValidator(_proposition_cost),
+    WithJsonSchema(
+        {
+            "description": "A number (the hold cost) or {hold: number, start: number}.",
+            "oneOf": [
+                {"type": "number"},
+                {
+                    "type": "object",
+                    "properties": {"hold": {"type": "number"}, "start": {"type": "number"}},
+                    "additionalProperties": False,
+                },
+            ],
+        }
+    ),
+]
+
+
+class TransitionRule(_Model):
+    """A cost on the automaton transitions that match: from a state of the obligation
+    ``from`` (a location's, as mitlc compile prints it), reading a letter where ``when``
+    holds, into a state of the obligation ``to`` (docs/costs.md)."""
+
+    source: str | None = Field(
+        default=None,
+        alias="from",
+        description="The source state's obligation, as mitlc compile prints a location's (clock "
+        "names optional); left out: every state.",
+    )
+    when: str = Field(
+        default="true",
+        description="A Boolean formula over the propositions, on the letter the transition reads.",
+    )
+    to: str | None = Field(
+        default=None, description="The target state's obligation; left out: any target."
+    )
+    cost: Number = Field(description="Paid on each step whose transition matches.")
+
+
+class CostsSection(_Model):
+    """Costs paid on the steps of an episode, beside its success: the checker reports the least
+    expected cost among the policies of best success (docs/costs.md)."""
+
+    step: Number = Field(default=0.0, description="Paid on every step.")
+    actions: dict[str, Number] = Field(
+        default_factory=dict, description="Paid on every step taking the named action."
+    )
+    propositions: dict[Proposition, PropositionCostEntry] = Field(
+        default_factory=dict,
+        description="Per proposition, what a step arriving where it holds pays: a number (hold) "
+        "or {hold: ..., start: ...} (start: only when it did not hold where the step came from).",
+    )
+    transitions: list[TransitionRule] = Field(
+        default_factory=list, description="Costs on the automaton's transitions."
+    )
+
+
+COSTS_DESCRIPTION = (
+    "Costs paid on the steps of an episode (negative: rewards): per step, per action, per "
+    "proposition and per automaton transition (docs/costs.md)."
+)
+
+
 class TaskFields(_Model):
     """The part every world file has, whatever its world: the task, its rewards, the
     episode's horizon, the discount and the learners' settings."""
@@ -323,6 +408,7 @@ class WorldFile(TaskFields):
         default=None,
         description="The observation model; null (the default) for a fully observed MDP.",
     )
+    costs: CostsSection | None = Field(default=None, description=COSTS_DESCRIPTION)
 
 
 MODELS: dict[tuple[str, ...], type[BaseModel]] = {
@@ -333,8 +419,12 @@ MODELS: dict[tuple[str, ...], type[BaseModel]] = {
     ("observation", "local-pattern"): LocalPattern,
     ("spec", "inline"): InlineSpec,
     ("reward",): Reward,
+    ("costs",): CostsSection,
+    ("costs", "propositions", "*"): PropositionCost,
+    ("costs", "transitions", "*"): TransitionRule,
 }
-"""The model at each place of the file, by pydantic's error location (union tags included)."""
+"""The model at each place of the file, by pydantic's error location (union tags included; a
+list index, or a priced proposition's name, as ``*``)."""
 OBSERVATION_TYPES = ("noisy-cell", "local-pattern")
 
 
@@ -568,6 +658,7 @@ class EnvWorldFile(TaskFields):
         "{terminated: true}; or a list of these (any of them). Every proposition of the spec "
         "must be labelled.",
     )
+    costs: CostsSection | None = Field(default=None, description=COSTS_DESCRIPTION)
 
 
 ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
@@ -579,6 +670,9 @@ ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
     ("labels", "*", "decoded", "decoded"): Decoding,
     ("spec", "inline"): InlineSpec,
     ("reward",): Reward,
+    ("costs",): CostsSection,
+    ("costs", "propositions", "*"): PropositionCost,
+    ("costs", "transitions", "*"): TransitionRule,
 }
 """The model at each place of an env world file, by pydantic's error location (union tags
 included, a label's name as ``*``)."""
