@@ -318,6 +318,10 @@ def _print_evaluation(
             ("Storm bounds", f"[{report.bounds['lower']:.6f}, {report.bounds['upper']:.6f}]")
         )
     rows.append(("mean return", f"{report.mean_return:.2f}"))
+    if report.mean_cost is not None:
+        rows.append(("mean cost", f"{report.mean_cost:.2f}"))
+    if report.min_cost is not None:
+        rows.append(("least cost, best success", f"{report.min_cost:.2f}"))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         typer.echo(f"{key:<{width}}  {value}")

@@ -81,6 +81,11 @@ def prepare(
         world = open_world(world_path, spec)
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
     if not is_finite(world):
+        if getattr(world, "costs", None) is not None:
+            raise ConfigError(
+                f"{world_path}: costs are learned on finite worlds (the product's transitions "
+                "carry them); this world is not finite"
+            )
         if config.shielded:
             raise ConfigError(
                 f"{world_path}: a shield is computed from the exact product, which a world "
@@ -89,9 +94,29 @@ def prepare(
         return Setting(world_path, world, automaton, config)
     product = build_product(world, automaton, deadline=clock.at("the product"))
     simulated = tables(product, world)
+    if world.costs is not None:
+        simulated = _with_costs(world, automaton, product, simulated, config)
     if config.shielded:
         simulated = _shielded(world, product, simulated, config, clock.at("the shield"))
     return Setting(world_path, world, automaton, config, product, simulated)
+
+
+def _with_costs(
+    world: World, automaton: DigitalAutomaton, product: Product, simulated: Tables,
+    config: TrainConfig,
+) -> Tables:  # fmt: skip
+    """``simulated`` with the cost of every product transition (:mod:`mitlc.product.costs`,
+    the one definition), which the simulator takes off the reward."""
+    from mitlc.product.costs import product_costs
+
+    learner = config.learner
+    if config.algo.startswith("sb3-") or getattr(learner, "crm", False):
+        raise ConfigError(
+            f"{world.name}: costs reach mitlc's own learners without counterfactual "
+            f"experience (q, dqn, drqn); --algo {config.algo}"
+            f"{' with crm' if getattr(learner, 'crm', False) else ''} does not read them yet"
+        )
+    return replace(simulated, cost=product_costs(world, automaton, product).transition)
 
 
 def _shielded(

@@ -77,6 +77,9 @@ class Tables:
     shield: Shield | ObservedShield | None = None
     """The actions allowed per step (:mod:`mitlc.check.shield`; over a POMDP's observations,
     :mod:`mitlc.check.shield_observed`), or none."""
+    cost: FloatArray | None = None
+    """Per product transition, what it costs (:func:`mitlc.product.costs.product_costs`, the
+    world's ``costs:``), taken from the step's reward; ``None``: no costs."""
     shield_enforced: bool = True
     """Whether :meth:`VecProduct.valid_actions` keeps to :attr:`shield` (else it only records
     the blocked actions taken: an audit)."""
@@ -164,10 +167,16 @@ def draw(
     cumulative: FloatArray, indptr: IntArray, targets: IntArray, rows: IntArray, uniform: FloatArray
 ) -> IntArray:
     """For each ``rows[i]``, the target that ``uniform[i]`` in [0, 1) selects."""
-    index = np.searchsorted(cumulative, rows + uniform, side="right")
-    index = np.clip(index, indptr[rows], indptr[rows + 1] - 1)
-    drawn: IntArray = targets[index]
+    drawn: IntArray = targets[draw_index(cumulative, indptr, rows, uniform)]
     return drawn
+
+
+def draw_index(
+    cumulative: FloatArray, indptr: IntArray, rows: IntArray, uniform: FloatArray
+) -> IntArray:
+    """For each ``rows[i]``, the index of the entry that ``uniform[i]`` in [0, 1) selects."""
+    index: IntArray = np.searchsorted(cumulative, rows + uniform, side="right")
+    return np.clip(index, indptr[rows], indptr[rows + 1] - 1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -211,6 +220,9 @@ class Step:
     strayed: BoolArray | None = None
     """With a shield: whether the episode has taken a blocked action so far, this step
     included."""
+    episode_cost: FloatArray | None = None
+    """With costs: what each episode has cost so far, this step included (complete for
+    ended ones); the reward already has it taken off."""
 
     @property
     def done(self) -> BoolArray:
@@ -237,6 +249,7 @@ class VecProduct:
         self.rounds = np.zeros(num_envs, dtype=np.int64)
         self.returns = np.zeros(num_envs)
         self.strayed = np.zeros(num_envs, dtype=np.bool_)
+        self.costs = np.zeros(num_envs)
         self._shield_now: BoolArray | None = None
         self.observation = self._observe(self.state)
 
@@ -253,6 +266,7 @@ class VecProduct:
             "returns": self.returns.copy(),
             "observation": self.observation.copy(),
             "strayed": self.strayed.copy(),
+            "costs": self.costs.copy(),
             "rng": self.rng.bit_generator.state,
         }
 
@@ -275,6 +289,8 @@ class VecProduct:
         for name in ("state", "mask", "steps", "actions_taken", "rounds", "returns", "observation"):
             setattr(self, name, np.array(saved[name]))
         self._shield_now = None
+        costs = saved.get("costs")  # runs saved before costs: none paid
+        self.costs = np.zeros(len(state)) if costs is None else np.array(costs, dtype=np.float64)
         strayed = saved.get("strayed")  # runs saved before shields: none strayed
         self.strayed = (
             np.zeros(len(state), dtype=np.bool_)
@@ -339,7 +355,8 @@ class VecProduct:
         if blocked is not None:
             self.strayed |= blocked
         uniform = self.rng.random(self.num_envs)
-        nxt = draw(t.cumulative, t.indptr, t.targets, choice, uniform)
+        index = draw_index(t.cumulative, t.indptr, choice, uniform)
+        nxt = t.targets[index]
         jump = actions >= t.num_world_actions
         mask, new_count, complete = rules.account(
             self.mask, t.marks[choice], t.all_sets, t.popcount
@@ -356,6 +373,10 @@ class VecProduct:
         )
         observation = np.where(jump, self.observation, self._observe(nxt))
         success = rules.success(verdict, self.rounds, t.end[nxt])
+        if t.cost is not None:
+            paid = t.cost[index]
+            reward = reward - paid
+            self.costs += paid
         self.returns += reward
         result = Step(
             reward=reward,
@@ -372,6 +393,7 @@ class VecProduct:
             next_valid=t.valid[nxt],
             blocked=blocked,
             strayed=None if blocked is None else self.strayed.copy(),
+            episode_cost=None if t.cost is None else self.costs.copy(),
         )
         self.state, self.mask, self.observation = nxt, mask, observation
         self._shield_now = None
@@ -386,6 +408,7 @@ class VecProduct:
         for counter in (self.steps, self.actions_taken, self.rounds):
             counter[done] = 0
         self.returns[done] = 0.0
+        self.costs[done] = 0.0
         self.strayed[done] = False
         self.observation = np.where(done, self._observe(self.state), self.observation)
 

@@ -68,6 +68,11 @@ class Evaluation:
     never_held: tuple[str, ...] = ()
     """The task's propositions that no letter read in the evaluation made true (worlds
     evaluated through the task wrapper; :mod:`mitlc.learn.held`)."""
+    mean_cost: float | None = None
+    """In a world with costs: the episodes' mean cost (Monte-Carlo)."""
+    min_cost: float | None = None
+    """In a finite world with costs: the least expected cost among the policies of best
+    success within the horizon (``mitlc check``'s ``min_cost_horizon``)."""
 
     @property
     def success_rate(self) -> float:
@@ -97,6 +102,8 @@ class Evaluation:
             "success_rate": self.success_rate,
             "interval95": [low, high],
             "mean_return": self.mean_return,
+            **({"mean_cost": self.mean_cost} if self.mean_cost is not None else {}),
+            **({"min_cost_horizon": self.min_cost} if self.min_cost is not None else {}),
             "exact": self.exact,
             "optimum": self.optimum,
             "optimum_kind": self._optimum_kind(),
@@ -149,6 +156,8 @@ def evaluate(
         episodes=estimate.trials,
         successes=estimate.successes,
         mean_return=estimate.mean_return,
+        mean_cost=estimate.mean_cost,
+        min_cost=_min_cost(setting, clock) if estimate.mean_cost is not None else None,
         exact=exact,
         optimum=optimum,
         pomdp=setting.world.is_pomdp,
@@ -207,3 +216,18 @@ def _choices(policy: Memoryless, tables: Tables) -> IntArray:
             allowed = s.allowed(np.array(r), lookup[:, None, None], tables.choice[None])
             chosen[r - 1, done] = policy.choices(tables.valid[None] & allowed)
     return chosen
+
+
+def _min_cost(setting: Setting, clock: Deadline) -> float | None:
+    """The least expected cost among the policies of best success (``mitlc check``'s), for a
+    finite world with costs."""
+    from mitlc.check.costs import least_cost
+    from mitlc.product.costs import product_costs
+
+    world, product, _ = setting.model()
+    if world.costs is None:
+        return None
+    _, history = pmax_horizon(product, world.horizon, deadline=clock.at("pmax_horizon"))
+    costs = product_costs(world, setting.automaton, product)
+    stage = clock.at("the least cost")
+    return least_cost(product, costs.choice, world.horizon, values=history, deadline=stage).value

@@ -59,6 +59,8 @@ class Estimate:
     successes: int
     trials: int
     mean_return: float
+    mean_cost: float | None = None
+    """The episodes' mean cost, in a world with costs (``None`` otherwise)."""
 
     @property
     def rate(self) -> float:
@@ -79,22 +81,30 @@ class Batches(Protocol):
         ...
 
 
-def first_episodes(batch: Episodes, policy: Policy) -> tuple[BoolArray, FloatArray]:
+def first_episodes(
+    batch: Episodes, policy: Policy
+) -> tuple[BoolArray, FloatArray, FloatArray | None]:
     """Step every slot of ``batch`` with ``policy`` until each has ended an episode; the
-    success and the return of each slot's first episode (later ones are not counted)."""
+    success, the return and (where the steps have costs) the cost of each slot's first
+    episode (later ones are not counted)."""
     n = batch.num_envs
     policy.reset(n)
     ended = np.zeros(n, dtype=np.bool_)
     success = np.zeros(n, dtype=np.bool_)
     returns = np.zeros(n, dtype=np.float64)
+    costs: FloatArray | None = None
     while not ended.all():
         step = batch.step(policy.act(batch))
         policy.observe(step)
         first = step.done & ~ended
         success[first] = step.success[first]
         returns[first] = step.episode_return[first]
+        paid = getattr(step, "episode_cost", None)
+        if paid is not None:
+            costs = np.zeros(n) if costs is None else costs
+            costs[first] = paid[first]
         ended |= step.done
-    return success, returns
+    return success, returns, costs
 
 
 def monte_carlo(batches: Batches, policy: Policy, episodes: int, *, width: int = WIDTH) -> Estimate:
@@ -102,9 +112,15 @@ def monte_carlo(batches: Batches, policy: Policy, episodes: int, *, width: int =
     (see the module docstring), ``width`` slots at a time."""
     if width < 1:
         raise ValueError(f"width: expected a positive integer, got {width}")
-    successes, total = 0, 0.0
+    successes, total, cost = 0, 0.0, None
     for first in range(0, episodes, width):
-        success, returns = first_episodes(batches(min(width, episodes - first), first), policy)
+        success, returns, costs = first_episodes(
+            batches(min(width, episodes - first), first), policy
+        )
         successes += int(success.sum())
         total += float(returns.sum())
-    return Estimate(successes, max(episodes, 0), total / episodes if episodes > 0 else 0.0)
+        if costs is not None:
+            cost = (cost or 0.0) + float(costs.sum())
+    count = max(episodes, 1)
+    mean_cost = None if cost is None else cost / count
+    return Estimate(successes, max(episodes, 0), total / count if episodes > 0 else 0.0, mean_cost)

@@ -57,12 +57,18 @@ class Tally:
         # that it blocks and the violated episodes that took one (runs saved before: 0).
         self.violations = self.blocked = self.preventable = 0
         self.shielded = False
+        self.window_cost = 0.0
+        self.costed = False
 
     def count(self, step: Any) -> None:
         """Add the violations, and with a shield the blocked actions, of a step (a
         :class:`~mitlc.learn.envs.vec.Step` or an open world's)."""
         violated = step.terminated & ~step.success
         self.violations += int(violated.sum())
+        paid = getattr(step, "episode_cost", None)
+        if paid is not None:
+            self.costed = True
+            self.window_cost += float(paid[step.done].sum())
         if getattr(step, "blocked", None) is not None:
             self.shielded = True
             self.blocked += int(step.blocked.sum())
@@ -91,13 +97,15 @@ def log_window(metrics: Any, tally: Tally, epsilon: float) -> None:
         "seconds": round(tally.seconds, 3),
         "violations": tally.violations,
     }
+    if tally.costed:
+        line["cost"] = round(tally.window_cost / max(tally.window_count, 1), 6)
     if tally.shielded:
         line["blocked_actions"] = tally.blocked
         line["preventable_violations"] = tally.preventable
     metrics.write(json.dumps(line) + "\n")
     metrics.flush()
     tally.window_count = tally.window_success = 0
-    tally.window_return = 0.0
+    tally.window_return = tally.window_cost = 0.0
 
 
 def progress_of(tally: Tally, total: int, epsilon: float) -> Progress:

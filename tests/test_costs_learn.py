@@ -1,0 +1,71 @@
+"""Costs in learning (issue 27): the simulator takes each transition's cost (the one
+definition, mitlc.product.costs) off the reward and reports what episodes cost; tabular
+Q-learning on the TRM example learns the cheaper order; eval reports the mean cost beside the
+least one; learners that do not read costs are refused."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from mitlc.automata import translate
+from mitlc.cli import app
+from mitlc.learn.envs.vec import VecProduct, tables
+from mitlc.learn.evaluation.evaluate import evaluate
+from mitlc.learn.learners.base import random_valid
+from mitlc.learn.run import train
+from mitlc.product.costs import product_costs
+from mitlc.product.explicit import build_product
+from mitlc.syntax import parse
+from mitlc.worlds import load_world
+from tests.conftest import ROOT
+from tests.test_learn import config
+
+TRM = ROOT / "specs" / "costs" / "trm-orders.yaml"
+
+
+def test_the_simulator_takes_each_transitions_cost_off_the_reward() -> None:
+    """Random walks on the TRM world: every step's reward is the task's less the cost of the
+    product transition drawn, and an episode's cost is the sum of its steps' costs."""
+    world = load_world(TRM)
+    automaton = translate(parse(world.spec))
+    product = build_product(world, automaton)
+    costs = product_costs(world, automaton, product)
+    plain = tables(product, world)
+    priced = replace(plain, cost=costs.transition)
+    envs = [VecProduct(t, 64, np.random.default_rng(5)) for t in (plain, priced)]
+    rng = np.random.default_rng(6)
+    paid = np.zeros(64)
+    for _ in range(200):
+        actions = random_valid(rng, envs[0].valid_actions())
+        free, charged = (env.step(actions) for env in envs)
+        assert np.array_equal(free.next_state, charged.next_state)  # the same draws
+        assert charged.episode_cost is not None and free.episode_cost is None
+        step_cost = free.reward - charged.reward
+        assert (step_cost >= 0).all()
+        paid += step_cost
+        assert np.allclose(charged.episode_cost, paid)
+        paid[charged.done] = 0.0
+    assert paid.max() > 0
+
+
+def test_q_learning_learns_the_cheaper_order_and_eval_reports_the_cost(tmp_path: Path) -> None:
+    run = train(TRM, config({"episodes": 300_000, "log_every": 30_000}), tmp_path / "trm")
+    lines = [json.loads(line) for line in (run.directory / "metrics.jsonl").open()]
+    assert all("cost" in line for line in lines)
+    report = evaluate(run.directory, episodes=500)
+    assert report.exact == pytest.approx(1.0)
+    assert report.min_cost == pytest.approx(1611.0)
+    assert report.mean_cost is not None and 1611.0 <= report.mean_cost < 1700.0  # b then a
+
+
+@pytest.mark.parametrize("args", [["--set", "q.crm=true"], ["--algo", "sb3-ppo"]])
+def test_learners_that_do_not_read_costs_are_refused(args: list[str], tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["train", str(TRM), "--out", str(tmp_path / "r"), *args])
+    assert result.exit_code == 1
+    assert "costs" in result.output and "Traceback" not in result.output
