@@ -64,8 +64,43 @@ def test_q_learning_learns_the_cheaper_order_and_eval_reports_the_cost(tmp_path:
     assert report.mean_cost is not None and 1611.0 <= report.mean_cost < 1700.0  # b then a
 
 
-@pytest.mark.parametrize("args", [["--set", "q.crm=true"], ["--algo", "sb3-ppo"]])
-def test_learners_that_do_not_read_costs_are_refused(args: list[str], tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "args", [["--set", "q.crm=true"], ["--algo", "dqn", "--set", "dqn.crm=true"]]
+)
+def test_counterfactual_experience_with_costs_is_refused(args: list[str], tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["train", str(TRM), "--out", str(tmp_path / "r"), *args])
     assert result.exit_code == 1
     assert "costs" in result.output and "Traceback" not in result.output
+
+
+def test_the_product_env_pays_what_the_simulator_pays() -> None:
+    """SB3 learns on the product env: a step's ``info["cost"]`` there is the cost of the
+    product transition it made (a certain world: one transition per choice), and the reward
+    has it taken off."""
+    from mitlc.product.env import ProductEnv
+
+    world = load_world(TRM)
+    automaton = translate(parse(world.spec))
+    product = build_product(world, automaton)
+    costs = product_costs(world, automaton, product)
+    env = ProductEnv(world, automaton)
+    plain = ProductEnv(replace(world, costs=None), automaton)
+    rng = np.random.default_rng(0)
+    env.reset(seed=1)
+    plain.reset(seed=1)
+    pairs = zip(product.world_state, product.automaton_state, strict=True)
+    states = {(int(w), int(q)): x for x, (w, q) in enumerate(pairs)}
+    total = 0.0
+    for _ in range(300):
+        x = states.get((env.world_state, env.automaton_state))
+        a = int(rng.integers(world.num_actions))
+        _, reward, terminated, truncated, info = env.step(a)
+        _, free, *_ = plain.step(a)
+        if x is not None:
+            assert info["cost"] == pytest.approx(costs.choice[product.choice_ptr[x] + a])
+        assert reward == pytest.approx(free - info["cost"])
+        total += info["cost"]
+        if terminated or truncated:
+            env.reset()
+            plain.reset()
+    assert total > 0

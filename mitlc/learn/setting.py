@@ -109,12 +109,10 @@ def _with_costs(
     the one definition), which the simulator takes off the reward."""
     from mitlc.product.costs import product_costs
 
-    learner = config.learner
-    if config.algo.startswith("sb3-") or getattr(learner, "crm", False):
+    if getattr(config.learner, "crm", False):
         raise ConfigError(
-            f"{world.name}: costs reach mitlc's own learners without counterfactual "
-            f"experience (q, dqn, drqn); --algo {config.algo}"
-            f"{' with crm' if getattr(learner, 'crm', False) else ''} does not read them yet"
+            f"{world.name}: counterfactual experience (crm) does not price the other automaton "
+            "states' steps yet, so it cannot learn with costs; drop crm"
         )
     return replace(simulated, cost=product_costs(world, automaton, product).transition)
 

@@ -49,6 +49,7 @@ from mitlc.gym.wrapper import PENDING, TaskObs, TaskWrapper
 from mitlc.product.explicit import Product, automaton_letters
 from mitlc.syntax import parse
 from mitlc.task import VERDICT_NAMES
+from mitlc.task.costs import StepTable, TransitionCosts, world_cost
 from mitlc.task.potential import world_potential
 from mitlc.worlds import World, load_world
 from mitlc.worlds.grid_env import GridEnv, WorldLabels
@@ -105,6 +106,9 @@ class ProductEnv(TaskWrapper):
                 raise ValueError("a shield needs the product it was computed on")
             self._shield = _ProductShield(shield, product, world.num_states)
         self._shield_audit = shield_audit
+        self._costs = None
+        if world.costs is not None:  # the one definition of a step's cost (mitlc.task.costs)
+            self._costs = (StepTable.of(world), TransitionCosts(world, automaton))
 
     def action_masks(self) -> BoolArray:
         """The valid actions (:meth:`TaskWrapper.action_masks`), and with a shield that is
@@ -122,9 +126,28 @@ class ProductEnv(TaskWrapper):
         )  # fmt: skip
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        """:meth:`TaskWrapper.step`; with a shield ``info["shield_blocked"]`` says whether the
-        action was a valid one the shield blocks (an agent that reads the masks never takes
-        one), and ``info["action_mask"]`` is the shielded mask."""
+        """:meth:`TaskWrapper.step`, less the step's cost in a world with costs (``info["cost"]``:
+        :func:`mitlc.task.costs.world_cost` of the world step and the transition rules' cost
+        of the automaton state and the letter read; jumps and refused actions cost nothing).
+        With a shield ``info["shield_blocked"]`` says whether the action was a valid one the
+        shield blocks (an agent that reads the masks never takes one), and
+        ``info["action_mask"]`` is the shielded mask."""
+        if self._costs is None:
+            return self._shielded_step(action)
+        index = int(action)
+        s, q = self.world_state, self.automaton_state
+        world_step = 0 <= index < self.world.num_actions and not self._done
+        obs, reward, terminated, truncated, info = self._shielded_step(action)
+        cost = 0.0
+        if world_step and not info.get("invalid_action", False):
+            table, rules = self._costs
+            letters = self.world.letters
+            cost = float(world_cost(table, index, int(letters[s]), int(letters[self.world_state])))
+            cost += rules.cost(q, int(letters[s]))
+        info["cost"] = cost
+        return obs, reward - cost, terminated, truncated, info
+
+    def _shielded_step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         if self._shield is None:
             return super().step(action)
         valid = super().action_masks()

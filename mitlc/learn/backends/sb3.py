@@ -367,6 +367,8 @@ class _Run:
         self.clock = time.perf_counter() - tally.seconds
         self.strayed: list[bool] = []
         """Per env: whether its episode took an action the shield blocks."""
+        self.paid: list[float] = []
+        """Per env: what its episode has cost so far."""
 
     def epsilon(self) -> float:
         """DQN's exploration rate (0 for the others, which explore by sampling or noise)."""
@@ -387,13 +389,18 @@ class _Run:
         tally, s = self.tally, self.config.sb3
         before, tally.steps = tally.steps, steps
         if len(self.strayed) != len(infos):
-            self.strayed = [False] * len(infos)
+            self.strayed, self.paid = [False] * len(infos), [0.0] * len(infos)
         for i, (done, info) in enumerate(zip(dones, infos, strict=True)):
             if "shield_blocked" in info:  # a shielded (or audited) run
                 tally.shielded = True
                 tally.blocked += bool(info["shield_blocked"])
                 self.strayed[i] = self.strayed[i] or bool(info["shield_blocked"])
+            if "cost" in info:  # a world with costs (the product env pays them)
+                tally.costed = True
+                self.paid[i] += float(info["cost"])
             if done:
+                tally.window_cost += self.paid[i]
+                self.paid[i] = 0.0
                 violated = info.get("verdict") == "violated"
                 tally.episodes += 1
                 tally.window_count += 1
