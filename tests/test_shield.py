@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import random
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,8 +16,9 @@ from mitlc.check.shield import Shield, ShieldError, shield
 from mitlc.check.solve import pmax_horizon
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product, recursion_ends
 from mitlc.syntax import parse
-from mitlc.worlds.model import Sparse, World
+from mitlc.worlds.model import World
 from tests.test_check import random_world
+from tests.test_env import corridor as env_corridor
 
 SPECS = [
     "!a U[2,6] b",
@@ -138,26 +140,10 @@ def test_both_together_keep_the_violation_bound(seed: int) -> None:
 
 
 def corridor() -> World:
-    """Three cells in a row, ``hole | start | goal``; ``left`` and ``right`` move one cell
-    surely, ``stay`` stays; the task: ``!hole U[0,3] goal``."""
-    rows = []
-    for s in range(3):
-        rows += [{max(s - 1, 0): 1.0}, {min(s + 1, 2): 1.0}, {s: 1.0}]
-    return World(
-        name="corridor",
-        rows=1,
-        cols=3,
-        cells=((0, 0), (0, 1), (0, 2)),
-        actions=("left", "right", "stay"),
-        start=1,
-        transitions=Sparse.from_rows(rows),
-        propositions=("goal", "hole"),
-        letters=np.array([2, 0, 1], dtype=np.int64),
-        spec="!hole U[0,3] goal",
-        spec_source="<inline>",
-        horizon=3,
-        discount=0.99,
-    )
+    """Three cells in a row, ``hole | start | goal`` (tests/test_env.py's); ``left`` and
+    ``right`` move one cell surely, ``stay`` stays; the task: ``!hole U[0,3] goal``."""
+    world = env_corridor({"hole": [0], "goal": [2]}, start=1, horizon=3)
+    return replace(world, spec="!hole U[0,3] goal")
 
 
 def test_the_corridor_blocks_the_hole_and_waiting_too_long() -> None:

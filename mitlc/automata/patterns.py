@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, TypeAlias
 
+from mitlc.semantics import holds_finite
 from mitlc.syntax import ast, parse
 
 Node: TypeAlias = tuple[Any, ...]
@@ -250,21 +251,7 @@ def _name(f: ast.Formula) -> str:
 
 
 def letter_holds(formula: ast.Formula, true: set[str] | frozenset[str]) -> bool:
-    """Whether the letter formula ``formula`` holds in the letter where exactly ``true``
-    hold."""
-    match formula:
-        case ast.Bool(value):
-            return value
-        case ast.Atom(name):
-            return name in true
-        case ast.Not(operand):
-            return not letter_holds(operand, true)
-        case ast.And(left, right):
-            return letter_holds(left, true) and letter_holds(right, true)
-        case ast.Or(left, right):
-            return letter_holds(left, true) or letter_holds(right, true)
-        case ast.Implies(left, right):
-            return not letter_holds(left, true) or letter_holds(right, true)
-        case ast.Iff(left, right):
-            return letter_holds(left, true) == letter_holds(right, true)
-    raise ValueError(f"a letter formula has no temporal operator, found {_name(formula)}")
+    """Whether the letter formula ``formula`` (no temporal operator: :func:`letter_formula`
+    checks it) holds in the letter where exactly ``true`` hold: the finite-trace semantics
+    (:func:`mitlc.semantics.holds_finite`) on that one letter."""
+    return holds_finite(formula, [frozenset(true)])

@@ -48,6 +48,7 @@ a round completed: :func:`mitlc.task.rules.saturate`); with no step left nothing
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -57,6 +58,9 @@ from mitlc.check.solve import mask_matrices, pmax_horizon
 from mitlc.limits import Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, recursion_ends, start_average
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from mitlc.check.shield_observed import ObservedShield
 
 TOLERANCE = 1e-12
 """Values are compared within this much (the passes sum the same terms in the same order as
@@ -107,15 +111,20 @@ class Shield:
 
     def summary(self) -> dict[str, float | int | None]:
         """The settings and the guarantees, for reports."""
-        return {
-            "theta": self.theta,
-            "delta": self.delta,
-            "horizon": self.horizon,
-            "optimum": self.optimum,
-            "guaranteed_success": self.success,
-            "guaranteed_violation": self.violation,
-            "least_violation": self.least_violation,
-        }
+        return summary(self)
+
+
+def summary(made: Shield | ObservedShield) -> dict[str, float | int | None]:
+    """A shield's settings and guarantees, for reports (``summary.json``)."""
+    return {
+        "theta": made.theta,
+        "delta": made.delta,
+        "horizon": made.horizon,
+        "optimum": made.optimum,
+        "guaranteed_success": made.success,
+        "guaranteed_violation": made.violation,
+        "least_violation": made.least_violation,
+    }
 
 
 def check_settings(theta: float | None, delta: float | None) -> None:

@@ -31,7 +31,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mitlc.check.shield import TOLERANCE, ShieldError, check_settings, least_violation
+from mitlc.check.shield import (
+    TOLERANCE,
+    ShieldError,
+    check_settings,
+    least_violation,
+    summary,
+)
 from mitlc.check.solve import mask_matrices, pmax_horizon
 from mitlc.limits import Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, recursion_ends, start_average
@@ -74,17 +80,8 @@ class ObservedShield:
         return allowed
 
     def summary(self) -> dict[str, float | int | None]:
-        """The settings and the guarantees, for reports."""
-        return {
-            "theta": self.theta,
-            "delta": self.delta,
-            "horizon": self.horizon,
-            "observed": True,
-            "optimum": self.optimum,
-            "guaranteed_success": self.success,
-            "guaranteed_violation": self.violation,
-            "least_violation": self.least_violation,
-        }
+        """The settings and the guarantees, for reports (:func:`mitlc.check.shield.summary`)."""
+        return {**summary(self), "observed": True}
 
 
 def observed_shield(
