@@ -132,7 +132,8 @@ def test_the_estimate_is_reproducible_and_independent_of_the_batch_width(gamble:
 
 
 def test_first_episodes_counts_each_slot_once(gamble: Any) -> None:
-    success, returns = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
+    success, returns, costs = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
+    assert costs is None  # a world without costs
     assert success.shape == returns.shape == (50,)
     assert (returns == np.where(success, 0.0, -1.0)).all()
 
