@@ -95,25 +95,19 @@ def prepare(
     product = build_product(world, automaton, deadline=clock.at("the product"))
     simulated = tables(product, world)
     if world.costs is not None:
-        simulated = _with_costs(world, automaton, product, simulated, config)
+        simulated = _with_costs(world, automaton, product, simulated)
     if config.shielded:
         simulated = _shielded(world, product, simulated, config, clock.at("the shield"))
     return Setting(world_path, world, automaton, config, product, simulated)
 
 
 def _with_costs(
-    world: World, automaton: DigitalAutomaton, product: Product, simulated: Tables,
-    config: TrainConfig,
-) -> Tables:  # fmt: skip
+    world: World, automaton: DigitalAutomaton, product: Product, simulated: Tables
+) -> Tables:
     """``simulated`` with the cost of every product transition (:mod:`mitlc.product.costs`,
     the one definition), which the simulator takes off the reward."""
     from mitlc.product.costs import product_costs
 
-    if getattr(config.learner, "crm", False):
-        raise ConfigError(
-            f"{world.name}: counterfactual experience (crm) does not price the other automaton "
-            "states' steps yet, so it cannot learn with costs; drop crm"
-        )
     return replace(simulated, cost=product_costs(world, automaton, product).transition)
 
 

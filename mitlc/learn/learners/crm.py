@@ -26,6 +26,7 @@ import numpy as np
 
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, automaton_letters
 from mitlc.task import TaskAutomaton, TaskMonitor, rules
+from mitlc.task.costs import StepTable, TransitionCosts, world_cost
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray, World
 
 
@@ -71,6 +72,8 @@ class Counterfactuals:
     all_sets: int
     popcount: IntArray
     rewards: rules.TaskRewards
+    costs: _Costs | None = None
+    """The world's costs (``costs:``), taken off each counterfactual's reward."""
 
     @staticmethod
     def build(product: Product, world: World, automaton: TaskAutomaton) -> Counterfactuals:
@@ -108,6 +111,7 @@ class Counterfactuals:
             all_sets=(1 << product.num_sets) - 1,
             popcount=np.asarray(rules.popcounts(product.num_sets), dtype=np.int64),
             rewards=world.rewards,
+            costs=None if world.costs is None else _Costs.build(world, automaton, top),
         )
 
     def of(self, state: IntArray, action: IntArray, next_state: IntArray) -> Batch:
@@ -141,6 +145,8 @@ class Counterfactuals:
         next_mask, new, _ = rules.account(mask, marks, self.all_sets, self.popcount)
         verdict = self.verdict[q_next]
         reward = rules.reward(new, verdict, self.rewards) + self.moves[action[step]]
+        if self.costs is not None:
+            reward = reward - self.costs.paid(action[step], s[step], s_next[step], q)
         return Batch(
             mask=mask,
             state=source,
@@ -151,6 +157,40 @@ class Counterfactuals:
             next_mask=next_mask,
             next_state=target,
         )
+
+
+@dataclass(frozen=True, slots=True)
+class _Costs:
+    """What a counterfactual step costs, by the one definition (:mod:`mitlc.task.costs`):
+    :func:`~mitlc.task.costs.world_cost` of the world step, and the transition rules' cost
+    per (automaton state, world letter), tabled once."""
+
+    table: StepTable
+    letters: IntArray
+    """Per world state, its index among the distinct world letters."""
+    world_letters: IntArray
+    """Per world state, its world letter."""
+    rules_cost: FloatArray
+    """``rules_cost[q, k]``: the rules' cost of automaton state ``q`` on letter ``k``."""
+
+    @staticmethod
+    def build(world: World, automaton: TaskAutomaton, num_q: int) -> _Costs:
+        """The tables of ``world``'s costs over ``automaton``'s first ``num_q`` states."""
+        distinct, index = np.unique(world.letters, return_inverse=True)
+        rules_of = TransitionCosts(world, automaton)
+        table = np.zeros((num_q, len(distinct)))
+        if rules_of.rules:
+            for q in range(num_q):
+                for k, letter in enumerate(distinct.tolist()):
+                    table[q, k] = rules_of.cost(q, int(letter))
+        return _Costs(StepTable.of(world), index.astype(np.int64), world.letters, table)
+
+    def paid(self, action: IntArray, s: IntArray, s_next: IntArray, q: IntArray) -> FloatArray:
+        """The cost of world steps ``s --action--> s_next`` read by automaton states ``q``."""
+        left, arrived = self.world_letters[s], self.world_letters[s_next]
+        world = np.asarray(world_cost(self.table, action, left, arrived), dtype=np.float64)
+        cost: FloatArray = world + self.rules_cost[q, self.letters[s]]
+        return cost
 
 
 def select(batch: Batch, keep: BoolArray) -> Batch:
