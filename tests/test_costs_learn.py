@@ -1,7 +1,8 @@
 """Costs in learning (issue 27): the simulator takes each transition's cost (the one
-definition, mitlc.product.costs) off the reward and reports what episodes cost; tabular
-Q-learning on the TRM example learns the cheaper order; eval reports the mean cost beside the
-least one; learners that do not read costs are refused."""
+definition, mitlc.product.costs) off the reward and reports what episodes cost; the product
+env (SB3) and counterfactual experience price steps alike; tabular Q-learning on the TRM
+example learns the cheaper order, with and without counterfactuals; eval reports the mean
+cost beside the least one."""
 
 from __future__ import annotations
 
