@@ -3,26 +3,28 @@
 An agent in a POMDP sees the observation ``o`` of its cell (drawn on entering it), the
 automaton state ``q``, the frontier ``mask`` and the steps left ``r`` (what mitlc's learners
 see), not the cell. A shield for it is a table over ``(r, mask, o, q)`` of the world actions
-allowed: whatever the cell behind ``o``, the agent gets the same answer. It is computed, as
-the MDP's (:mod:`mitlc.check.shield`), by one backward pass that keeps the *worst* a shielded
-agent can do; each action is judged over every product state the observation allows (the
-pairs ``x = (s, q)`` with ``P(o | s) > 0``), as the observation-based analysis of
-:mod:`mitlc.check.observed` judges a policy over ``(o, q)``:
+allowed: whatever the cell behind ``o``, the agent gets the same answer.
 
-* ``theta``: the action's worst success within ``r`` steps over those states, the shield
-  followed from then on, is at least ``theta`` times the best such worst case of any action
-  (``theta = 1``: only the actions whose worst case is best);
-* ``delta``: its largest violation probability over those states is at most ``delta`` more
-  than the least such largest of any action.
+The reference is the observation-based analysis (:mod:`mitlc.check.observed`): the best
+policy ``pi`` over ``(t, o, q)`` that its search finds, whose exact success is ``mitlc
+check``'s lower bound of the POMDP's optimum. Its values ``L[r][mask, x]`` (success) and
+``Lz`` (violation) from every product state are computed in the same backward pass as the
+shield's own worst cases ``W`` and ``Z`` (the least success and the largest violation of
+any agent that follows the shield, whatever it remembers). An action is allowed at ``(r,
+mask, o, q)`` when, in *every* product state ``x = (s, q)`` the observation allows (``P(o |
+s) > 0``):
 
-Both tests compare the actions with one another, so some action always passes; with both, a
-key where none passes both keeps the ``delta``-allowed ones (safety first). The guarantee is
-the pass's own, exact: **every policy that follows the shield, whatever it remembers, succeeds
-with probability at least** :attr:`ObservedShield.success` **and violates with probability at
-most** :attr:`ObservedShield.violation` (from the start, over its observations). Unlike the
-MDP's, ``theta`` is relative to what can be guaranteed from an observation, not to the
-optimum of an agent that sees the cell (``optimum``, an upper bound); a task with epsilon
-jumps is not shielded here.
+* ``theta``: its success over ``W`` is at least ``theta * L[r][mask, x]``;
+* ``delta``: its violation over ``Z`` is at most ``Lz[r][mask, x] + delta``.
+
+``pi``'s own action always passes (its successors' worst cases are at least ``theta`` times
+theirs, by induction), so **every policy that follows the shield succeeds with probability at
+least ``theta`` times the observation-based bound, and violates with probability at most
+``delta`` more than ``pi`` does**, from the start (``theta = 1``, ``delta = 0``: every
+shielded agent does at least as well as ``pi``, wherever it is). With both, a key where no
+action passes both keeps the ``delta``-allowed ones. :attr:`ObservedShield.success` and
+:attr:`ObservedShield.violation` are the pass's exact worst cases. A task with epsilon jumps is
+not shielded here (the analysis does not take them).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mitlc.check.observed import ObservedBound, ObservedBoundError, observed_bound
 from mitlc.check.shield import (
     TOLERANCE,
     ShieldError,
@@ -58,6 +61,8 @@ class ObservedShield:
     """``table[r - 1, mask, k, a]``: action ``a`` is allowed at key ``keys[k]``."""
     optimum: float
     """``pmax_horizon`` of an agent that sees the cell (an upper bound)."""
+    reference: float
+    """The exact success of the observation-based policy (the lower bound)."""
     success: float
     """The least success probability within the horizon of any shielded policy."""
     violation: float
@@ -81,7 +86,7 @@ class ObservedShield:
 
     def summary(self) -> dict[str, float | int | None]:
         """The settings and the guarantees, for reports (:func:`mitlc.check.shield.summary`)."""
-        return {**summary(self), "observed": True}
+        return {**summary(self), "observed": True, "observation_based": self.reference}
 
 
 def observed_shield(
@@ -101,22 +106,29 @@ def observed_shield(
     if (product.action < 0).any():
         raise ShieldError("a POMDP shield for a task with epsilon jumps is not built")
     clock = Deadline.none() if deadline is None else deadline
+    try:
+        found = observed_bound(world, product, horizon=horizon, deadline=clock)
+    except ObservedBoundError as err:
+        raise ShieldError(f"the observation-based analysis it reads: {err}") from None
     seen = _Seen.of(world, product)
     masks, num_a = 1 << product.num_sets, world.num_actions
     clock.reserve(horizon * masks * len(seen.keys) * num_a, "the shield's table")
     table = np.zeros((horizon, masks, len(seen.keys), num_a), dtype=np.bool_)
     matrices = mask_matrices(product)
-    worst = recursion_ends(product)
-    risk = np.zeros_like(worst)
-    risk[:, VIOLATED] = 1.0
+    # worst success, largest violation (the shield's); success and violation of pi
+    tables = [recursion_ends(product), np.zeros((masks, product.num_states))]
+    tables[1][:, VIOLATED] = 1.0
+    tables += [tables[0].copy(), tables[1].copy()]
     for r in range(1, horizon + 1):
         clock.check_now()
-        q_worst = np.stack([m @ worst.ravel() for m in matrices])
-        q_risk = np.stack([m @ risk.ravel() for m in matrices])
+        steps = [np.stack([m @ v.ravel() for m in matrices]) for v in tables]
+        chosen = _policy_actions(found, seen, horizon - r)
         for mask in range(masks):
-            table[r - 1, mask], worst[mask], risk[mask] = _step(
-                seen, q_worst[mask], q_risk[mask], theta, delta, num_a, product.num_states
+            table[r - 1, mask], *values = _step(
+                seen, [q[mask] for q in steps], chosen, theta, delta, num_a, product.num_states
             )
+            for v, new in zip(tables, values, strict=True):
+                v[mask] = new
     optimum, _ = pmax_horizon(product, horizon, keep_history=False, deadline=clock)
     least = least_violation(product, horizon)
     return ObservedShield(
@@ -127,10 +139,21 @@ def observed_shield(
         num_q=seen.num_q,
         table=table,
         optimum=optimum,
-        success=start_average(product, worst[0]),
-        violation=start_average(product, risk[0]),
+        reference=start_average(product, tables[2][0]),
+        success=start_average(product, tables[0][0]),
+        violation=start_average(product, tables[1][0]),
         least_violation=start_average(product, least),
     )
+
+
+def _policy_actions(found: ObservedBound, seen: _Seen, t: int) -> IntArray:
+    """The observation-based policy's action at step ``t`` for each of ``seen``'s keys (0
+    where its search never met the key, as :meth:`ObservedBound.action` says)."""
+    at = np.minimum(np.searchsorted(found.keys, seen.keys), len(found.keys) - 1)
+    met = found.keys[at] == seen.keys
+    step = min(t, len(found.policy) - 1)
+    actions: IntArray = np.where(met, found.policy[step, at], 0)
+    return actions
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,30 +199,38 @@ class _Seen:
 
 def _step(
     seen: _Seen,
-    q_worst: FloatArray,
-    q_risk: FloatArray,
+    q_values: list[FloatArray],
+    chosen: IntArray,
     theta: float | None,
     delta: float | None,
     num_a: int,
     num_states: int,
-) -> tuple[BoolArray, FloatArray, FloatArray]:
-    """One step of one mask: the allowed actions per key, and per product state the worst
-    success and the largest violation of the shielded agent, averaged over its
-    observations (the absorbing states' fixed)."""
+) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """One step of one mask. ``q_values``: per choice, the next step's worst success, largest
+    violation, and the policy's success and violation; ``chosen``: the policy's action per
+    key. The allowed actions per key, and per product state the four values (averaged over its
+    observations; the absorbing states' fixed)."""
     choice = seen.first_choice[:, None] + np.arange(num_a)[None, :]
-    w, z = q_worst[choice], q_risk[choice]  # per pair and action
-    robust_w = np.minimum.reduceat(w, seen.ptr, axis=0)  # per key and action
-    robust_z = np.maximum.reduceat(z, seen.ptr, axis=0)
-    ok = np.ones(robust_w.shape, dtype=np.bool_)
-    if theta is not None:
-        ok &= robust_w >= theta * robust_w.max(axis=1, keepdims=True) - TOLERANCE
-    if delta is not None:
-        safe = robust_z <= robust_z.min(axis=1, keepdims=True) + delta + TOLERANCE
-        ok = np.where((ok & safe).any(axis=1, keepdims=True), ok & safe, safe)
+    w, z, ref_w, ref_z = (q[choice] for q in q_values)  # per pair and action
+    pick = chosen[seen.key][:, None]
+    anchor_w = np.take_along_axis(ref_w, pick, axis=1)  # pi's values from each pair's state
+    anchor_z = np.take_along_axis(ref_z, pick, axis=1)
+    passes_w = w >= theta * anchor_w - TOLERANCE if theta is not None else np.ones_like(w, bool)
+    passes_z = z <= anchor_z + delta + TOLERANCE if delta is not None else np.ones_like(z, bool)
+    ok_w = np.logical_and.reduceat(passes_w, seen.ptr, axis=0)  # in every state of the key
+    ok_z = np.logical_and.reduceat(passes_z, seen.ptr, axis=0)
+    ok = np.where((ok_w & ok_z).any(axis=1, keepdims=True), ok_w & ok_z, ok_z)
     allowed = ok[seen.key]
-    worst, risk = np.zeros(num_states), np.zeros(num_states)
-    np.add.at(worst, seen.state, seen.prob * np.where(allowed, w, np.inf).min(axis=1))
-    np.add.at(risk, seen.state, seen.prob * np.where(allowed, z, -np.inf).max(axis=1))
-    worst[SATISFIED], worst[VIOLATED] = 1.0, 0.0
-    risk[SATISFIED], risk[VIOLATED] = 0.0, 1.0
-    return ok, np.clip(worst, 0.0, 1.0), np.clip(risk, 0.0, 1.0)
+    out = []
+    for values, empty, pick_min in ((w, np.inf, True), (z, -np.inf, False)):
+        masked = np.where(allowed, values, empty)
+        out.append(masked.min(axis=1) if pick_min else masked.max(axis=1))
+    out += [anchor_w[:, 0], anchor_z[:, 0]]
+    per_state = []
+    for k, each in enumerate(out):
+        total = np.zeros(num_states)
+        np.add.at(total, seen.state, seen.prob * each)
+        success = k % 2 == 0
+        total[SATISFIED], total[VIOLATED] = (1.0, 0.0) if success else (0.0, 1.0)
+        per_state.append(np.clip(total, 0.0, 1.0))
+    return ok, per_state[0], per_state[1], per_state[2], per_state[3]
