@@ -17,13 +17,13 @@ from mitlc.check.shield import ShieldError
 from mitlc.check.shield_observed import ObservedShield, observed_shield
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.envs.vec import VecProduct, tables
-from mitlc.learn.learners.base import random_valid
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product, recursion_ends
 from mitlc.syntax import parse
 from mitlc.worlds import load_world
 from mitlc.worlds.model import Observations, Sparse, World
 from tests.conftest import ROOT
 from tests.test_check import random_world
+from tests.test_shield_train import uniform_shielded_success
 
 SPECS = ["!a U[2,6] b", "F[0,5] (a & F[0,4] b)", "G[0,6] !a & F[2,7] b", "G (a -> F[0,3] b)"]
 
@@ -137,15 +137,7 @@ def test_the_simulator_keeps_to_the_observed_shield() -> None:
     s = observed_shield(world, product, world.horizon, theta=1.0)
     t = replace(tables(product, world), shield=s)
     env = VecProduct(t, 5000, np.random.default_rng(0))
-    rng = np.random.default_rng(1)
-    done = np.zeros(env.num_envs, dtype=np.bool_)
-    success = np.zeros(env.num_envs, dtype=np.bool_)
-    while not done.all():
-        step = env.step(random_valid(rng, env.valid_actions()))
-        assert step.blocked is not None and not step.blocked.any()
-        first = step.done & ~done
-        success[first] = step.success[first]
-        done |= step.done
+    success = uniform_shielded_success(env, np.random.default_rng(1))
     exact = evaluate(world, product, s, "uniform", risk=False)
     error = max(np.sqrt(exact * (1 - exact) / env.num_envs), 1e-3)
     assert abs(success.mean() - exact) < 4.5 * error

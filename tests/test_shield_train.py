@@ -31,6 +31,20 @@ from tests.test_shield import product_of, uniform
 CASE1 = ROOT / "specs" / "paper" / "case1.yaml"
 
 
+def uniform_shielded_success(env: VecProduct, rng: np.random.Generator) -> np.ndarray:
+    """Each slot's first episode's success, every action drawn uniformly among those the
+    simulator allows (its shield's); no step may take a blocked action."""
+    done = np.zeros(env.num_envs, dtype=np.bool_)
+    success = np.zeros(env.num_envs, dtype=np.bool_)
+    while not done.all():
+        step = env.step(random_valid(rng, env.valid_actions()))
+        assert step.blocked is not None and not step.blocked.any()
+        first = step.done & ~done
+        success[first] = step.success[first]
+        done |= step.done
+    return success
+
+
 @pytest.mark.parametrize("seed", [0, 2, 5])
 def test_the_uniform_shielded_policy_in_the_simulator_matches_its_exact_value(seed: int) -> None:
     """20,000 episodes of the policy that picks uniformly among the shield's allowed actions
@@ -41,15 +55,7 @@ def test_the_uniform_shielded_policy_in_the_simulator_matches_its_exact_value(se
     s = shield(product, world.horizon, theta=0.6)
     t = replace(tables(product, world), shield=s)
     env = VecProduct(t, 20_000, np.random.default_rng(seed))
-    rng = np.random.default_rng(seed + 1)
-    done = np.zeros(env.num_envs, dtype=np.bool_)
-    success = np.zeros(env.num_envs, dtype=np.bool_)
-    while not done.all():
-        step = env.step(random_valid(rng, env.valid_actions()))
-        assert step.blocked is not None and not step.blocked.any()
-        first = step.done & ~done
-        success[first] = step.success[first]
-        done |= step.done
+    success = uniform_shielded_success(env, np.random.default_rng(seed + 1))
     exact = exact_value(product, s, uniform, violation=False)
     n = env.num_envs
     error = max(np.sqrt(exact * (1 - exact) / n), 1e-3)
