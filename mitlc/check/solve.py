@@ -295,10 +295,10 @@ def pmax_horizon(
     or past ``memory_limit`` GB held (``None``: no limit), or at
     ``deadline`` when one is given."""
     clock = Deadline.of(deadline, time_limit, "pmax_horizon", memory_limit)
+    matrices = mask_matrices(product)
+    raw = _ends(product)
     if not keep_history:  # an acyclic product's fixpoint, layer by layer, when the steps reach it
-        last = acyclic_horizon(
-            product, mask_matrices(product), _ends(product), horizon, clock, layered
-        )
+        last = acyclic_horizon(product, matrices, raw, horizon, clock, layered)
         if last is not None:
             return start_average(product, last[0]), [last]
     n = product.num_states
@@ -306,12 +306,10 @@ def pmax_horizon(
     ptr = product.choice_ptr
     sources = choice_sources(product)
     jumps = np.flatnonzero(product.action < 0)
-    matrices = mask_matrices(product)
     into_ptr, into_indices = into_choices(product)
     jump_sources = sources[jumps]
     jump_targets = t.targets[t.indptr[jumps]]
     fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
-    raw = _ends(product)
     table = raw.copy()  # no step left: the episode is over, so no jump is taken either
     history = [table.copy()]
     slot = np.zeros(n, dtype=np.int64)

@@ -116,15 +116,19 @@ def layers(forward: csr_matrix) -> tuple[IntArray, IntArray]:
     """``(order, ptr)``: the nodes of an acyclic graph (self-loops allowed) layered by Kahn's
     algorithm, layer ``d`` being ``order[ptr[d]:ptr[d+1]]`` (``ptr`` ends with the node count);
     layer 0 has no successors."""
+    order, ptr, _ = _kahn(forward)
+    return order, ptr
+
+
+def _kahn(forward: csr_matrix) -> tuple[IntArray, IntArray, IntArray]:
+    """:func:`layers`, and the nodes with a self-loop (found on the way)."""
     count = forward.shape[0]
     per_row = np.diff(forward.indptr)
     tails = np.repeat(np.arange(count, dtype=np.int32), per_row)
-    loops = np.flatnonzero(tails == forward.indices)
+    looped = tails[tails == forward.indices]  # a row's edges are distinct: one loop at most
     del tails
-    remaining = per_row.astype(np.int64) - np.bincount(
-        np.searchsorted(forward.indptr, loops, side="right") - 1, minlength=count
-    )
-    del loops, per_row
+    remaining = per_row.astype(np.int64) - np.bincount(looped, minlength=count)
+    del per_row
     back_ptr, back_tails = _reversed(forward)  # column j lists the predecessors of j
     slot = np.zeros(count, dtype=np.int64)
     frontier = np.flatnonzero(remaining == 0)
@@ -142,7 +146,7 @@ def layers(forward: csr_matrix) -> tuple[IntArray, IntArray]:
     order = np.concatenate(found)
     if len(order) != count:
         raise ValueError("the graph has a cycle of more than one node")
-    return order, ptr
+    return order, ptr, looped
 
 
 @dataclass(frozen=True, slots=True)
@@ -161,12 +165,10 @@ def layering(graph: csr_matrix) -> Layering | None:
     """The product's :class:`Layering` from its :func:`state_graph`, or ``None`` when the
     graph has a cycle of more than one state."""
     try:
-        order, ptr = layers(graph)
+        order, ptr, looped = _kahn(graph)
     except ValueError:
         return None
-    rows = np.repeat(np.arange(graph.shape[0], dtype=np.int32), np.diff(graph.indptr))
-    loops = rows[rows == graph.indices]
-    absorbing = not ((loops != SATISFIED) & (loops != VIOLATED)).any()
+    absorbing = not ((looped != SATISFIED) & (looped != VIOLATED)).any()
     if len(order) <= INDEX_LIMIT:  # held from pmax to pmax_horizon: 4 bytes a state
         order = order.astype(np.int32)
     return Layering(order, ptr, absorbing)
