@@ -162,7 +162,6 @@ def shield(
     for r in range(1, horizon + 1):
         clock.check_now()
         bits[r - 1] = np.packbits(passes.step(values[r]), axis=1)
-    start = product.starts
     return Shield(
         horizon=horizon,
         theta=theta,
@@ -170,9 +169,9 @@ def shield(
         bits=bits,
         num_choices=choices,
         optimum=start_average(product, values[horizon][0]),
-        success=float(sum(p * passes.worst[0, x] for x, p in start)),
-        violation=float(sum(p * passes.risk[0, x] for x, p in start)),
-        least_violation=float(sum(p * passes.least[x] for x, p in start)),
+        success=start_average(product, passes.worst[0]),
+        violation=start_average(product, passes.risk[0]),
+        least_violation=start_average(product, passes.least),
     )
 
 
@@ -182,28 +181,19 @@ class _Passes:
 
     def __init__(self, product: Product, theta: float | None, delta: float | None) -> None:
         self.product, self.theta, self.delta = product, theta, delta
-        n = product.num_states
-        t = product.transitions
         self.matrices = mask_matrices(product)
-        self.is_jump = product.action < 0
-        probs = np.where(np.repeat(~self.is_jump, np.diff(t.indptr)), t.probs, 0.0)
-        self.plain = csr_matrix((probs, t.targets, t.indptr), shape=(product.num_choices, n))
-        self.owner = np.repeat(np.arange(n), np.diff(product.choice_ptr))
-        jumps = np.flatnonzero(self.is_jump)
-        self.target = np.zeros(product.num_choices, dtype=np.int64)
-        self.target[jumps] = t.targets[t.indptr[jumps]]
-        self.jumps = list(
-            zip(
-                self.owner[jumps].tolist(), self.target[jumps].tolist(), jumps.tolist(), strict=True
-            )
+        self.moves = _Moves.of(product)
+        self.is_jump, self.owner, self.jumps = (
+            self.moves.is_jump,
+            self.moves.owner,
+            self.moves.jumps,
         )
         # No step left: success as the episode ends (pmax_horizon's first table); a violation
         # only in the violated state.
         self.worst: FloatArray = recursion_ends(product)
         self.risk = np.zeros_like(self.worst)
         self.risk[:, VIOLATED] = 1.0
-        self.least = np.zeros(n)
-        self.least[VIOLATED] = 1.0
+        self.least = self.moves.no_step_left()
 
     def step(self, best: FloatArray) -> BoolArray:
         """One more step left, ``best`` being ``V`` there: the allowed choices
@@ -216,7 +206,7 @@ class _Passes:
         )
         q_worst = np.stack([m @ self.worst.ravel() for m in self.matrices])
         q_risk = np.stack([m @ self.risk.ravel() for m in self.matrices])
-        least = _least_step(self.plain, self.least, ptr, is_jump, self.jumps)
+        least = self.moves.least_step(self.least)
         ok = self._tests(q_worst, q_risk, best[:, owner], least[owner]) & ~is_jump
         worst = _reduce(np.minimum, np.where(ok, q_worst, np.inf), ptr)
         risk = _reduce(np.maximum, np.where(ok, q_risk, -np.inf), ptr)
@@ -276,30 +266,53 @@ class _Passes:
 def least_violation(product: Product, horizon: int) -> FloatArray:
     """``U[horizon][x]``: the least probability, over all policies, of a violation (entering
     the violated state) within ``horizon`` steps from each product state."""
-    passes = _Passes(product, None, 0.0)
-    least = passes.least
+    moves = _Moves.of(product)
+    least = moves.no_step_left()
     for _ in range(horizon):
-        least = _least_step(
-            passes.plain, least, product.choice_ptr[:-1], passes.is_jump, passes.jumps
-        )
+        least = moves.least_step(least)
     return least
 
 
-def _least_step(
-    plain: csr_matrix,
-    least: FloatArray,
-    ptr: IntArray,
-    is_jump: BoolArray,
-    jumps: list[tuple[int, int, int]],
-) -> FloatArray:
-    """One step of ``U``: the least over each state's world choices of the violation reached
-    from their successors' ``least``, then the epsilon jumps (no step) in ``pmax_horizon``'s
-    order (``_settle``)."""
-    after: FloatArray = np.minimum.reduceat(np.where(is_jump, np.inf, plain @ least), ptr)
-    after[VIOLATED], after[SATISFIED] = 1.0, 0.0
-    for source, target, _ in jumps:
-        after[source] = min(after[source], after[target])
-    return after
+@dataclass(frozen=True, slots=True)
+class _Moves:
+    """The product's world choices as one matrix (jumps' rows zeroed), which choices are jumps,
+    each choice's state, and the jumps as ``(source, target, choice)`` in ``pmax_horizon``'s
+    order: what the least violation ``U`` steps over."""
+
+    product: Product
+    plain: csr_matrix
+    is_jump: BoolArray
+    owner: IntArray
+    jumps: list[tuple[int, int, int]]
+
+    @staticmethod
+    def of(product: Product) -> _Moves:
+        n, t = product.num_states, product.transitions
+        is_jump = product.action < 0
+        probs = np.where(np.repeat(~is_jump, np.diff(t.indptr)), t.probs, 0.0)
+        plain = csr_matrix((probs, t.targets, t.indptr), shape=(product.num_choices, n))
+        owner = np.repeat(np.arange(n), np.diff(product.choice_ptr))
+        c = np.flatnonzero(is_jump)
+        sources, targets = owner[c].tolist(), t.targets[t.indptr[c]].tolist()
+        jumps = list(zip(sources, targets, c.tolist(), strict=True))
+        return _Moves(product, plain, is_jump, owner, jumps)
+
+    def no_step_left(self) -> FloatArray:
+        """``U[0]``: a violation only in the violated state."""
+        least = np.zeros(self.product.num_states)
+        least[VIOLATED] = 1.0
+        return least
+
+    def least_step(self, least: FloatArray) -> FloatArray:
+        """One step of ``U``: the least over each state's world choices of the violation
+        reached from their successors' ``least``, then the epsilon jumps (no step) in
+        ``pmax_horizon``'s order (``_settle``)."""
+        reached = np.where(self.is_jump, np.inf, self.plain @ least)
+        after: FloatArray = np.minimum.reduceat(reached, self.product.choice_ptr[:-1])
+        after[VIOLATED], after[SATISFIED] = 1.0, 0.0
+        for source, target, _ in self.jumps:
+            after[source] = min(after[source], after[target])
+        return after
 
 
 def _reduce(ufunc: np.ufunc, values: FloatArray, ptr: IntArray) -> FloatArray:
