@@ -180,3 +180,5 @@ def test_maskable_ppo_keeps_to_the_shield(tmp_path: Path) -> None:
     records = [json.loads(line) for line in (tmp_path / "r" / "metrics.jsonl").open()]
     assert records and all(r["blocked_actions"] == 0 for r in records)
     assert all(r["preventable_violations"] == 0 for r in records)
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())  # as mitlc's runs
+    assert summary["shield"]["theta"] == 1.0 and summary["blocked_actions"] == 0

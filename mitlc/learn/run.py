@@ -49,6 +49,7 @@ from mitlc.learn.rundir.runlog import (
     Tally,
     log_window,
     progress_of,
+    summary_of,
     truncate_metrics,
     write_json,
 )
@@ -306,23 +307,5 @@ def _train(
         save()
     unseen = run_never_held(setting.finite, setting.automaton.propositions, env.envs)
     if not stopped:
-        summary: dict[str, Any] = {
-            "episodes": tally.episodes,
-            "steps": tally.steps,
-            "seconds": round(tally.seconds, 3),
-            "success_rate": tally.last_rate,
-            "mean_return": tally.last_return,
-            "violations": tally.violations,
-        }
-        if tally.shielded:
-            summary["shield"] = (
-                setting.tables.shield.summary()
-                if setting.tables and setting.tables.shield
-                else None
-            )
-            summary["blocked_actions"] = tally.blocked
-            summary["preventable_violations"] = tally.preventable
-        if unseen:
-            summary["never_held"] = list(unseen)
-        write_json(directory / SUMMARY, summary)
+        write_json(directory / SUMMARY, summary_of(tally, setting.shield_summary, unseen))
     return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen)

@@ -51,6 +51,12 @@ class Setting:
     tables: Tables | None = None
 
     @property
+    def shield_summary(self) -> dict[str, Any] | None:
+        """The settings and guarantees of the run's shield (``None``: none)."""
+        shield = None if self.tables is None else self.tables.shield
+        return None if shield is None else dict(shield.summary())
+
+    @property
     def finite(self) -> bool:
         """Whether the world is finite (its product is here)."""
         return self.product is not None

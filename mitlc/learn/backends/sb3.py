@@ -79,6 +79,7 @@ from mitlc.learn.rundir.runlog import (
     Tally,
     log_window,
     progress_of,
+    summary_of,
     truncate_metrics,
     write_json,
 )
@@ -338,12 +339,7 @@ def _train(
     stopped = run.stopped and tally.steps < s.steps
     unseen = run_never_held(setting.finite, setting.automaton.propositions, venv.envs)
     if not stopped:
-        summary: dict[str, Any] = {"episodes": tally.episodes, "steps": tally.steps}
-        summary.update(seconds=round(tally.seconds, 3), success_rate=tally.last_rate)
-        summary["mean_return"] = tally.last_return
-        if unseen:
-            summary["never_held"] = list(unseen)
-        write_json(directory / SUMMARY, summary)
+        write_json(directory / SUMMARY, summary_of(tally, setting.shield_summary, unseen))
     return RunResult(directory, config, tally.episodes, tally.steps, tally.seconds, stopped, unseen)
 
 

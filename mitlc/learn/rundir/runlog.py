@@ -108,6 +108,29 @@ def log_window(metrics: Any, tally: Tally, epsilon: float) -> None:
     tally.window_return = tally.window_cost = 0.0
 
 
+def summary_of(
+    tally: Tally, shield: dict[str, Any] | None, unseen: tuple[str, ...]
+) -> dict[str, Any]:
+    """A finished run's ``summary.json``, for every learner: its counts and last window, the
+    violations, with a shield its guarantees (``shield``: its summary) and the blocked actions
+    and preventable violations, and the propositions ``unseen`` in training."""
+    summary: dict[str, Any] = {
+        "episodes": tally.episodes,
+        "steps": tally.steps,
+        "seconds": round(tally.seconds, 3),
+        "success_rate": tally.last_rate,
+        "mean_return": tally.last_return,
+        "violations": tally.violations,
+    }
+    if tally.shielded:
+        summary["shield"] = shield
+        summary["blocked_actions"] = tally.blocked
+        summary["preventable_violations"] = tally.preventable
+    if unseen:
+        summary["never_held"] = list(unseen)
+    return summary
+
+
 def progress_of(tally: Tally, total: int, epsilon: float) -> Progress:
     rate, mean = tally.last_rate, tally.last_return
     if tally.window_count:
