@@ -78,8 +78,18 @@ def product_costs(
         if strict and error is not None:
             raise error
     cost = np.where(live[entry_choice], cost + automaton_part[entry_choice], 0.0)
-    choice = np.bincount(entry_choice, weights=t.probs * cost, minlength=product.num_choices)
-    return ProductCosts(cost, choice.astype(np.float64))
+    return ProductCosts(cost, choice_costs(product, cost))
+
+
+def choice_costs(product: Product, transition: FloatArray) -> FloatArray:
+    """The expected immediate cost of every choice of ``product`` from the cost of every
+    transition (:attr:`ProductCosts.transition`): the sum over its transitions of probability
+    times cost."""
+    t = product.transitions
+    entry_choice = np.repeat(np.arange(product.num_choices), np.diff(t.indptr))
+    choice = np.bincount(entry_choice, weights=t.probs * transition, minlength=product.num_choices)
+    expected: FloatArray = choice.astype(np.float64)
+    return expected
 
 
 def _expected_rows(world: World, table: StepTable) -> FloatArray:

@@ -23,6 +23,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from mitlc.check.costs import least_cost
 from mitlc.check.shield import Shield
 from mitlc.check.solve import pmax_horizon
 from mitlc.learn.envs.vec import Tables
@@ -32,6 +33,7 @@ from mitlc.learn.held import HeldLog, never_held
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, batches
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
+from mitlc.product.costs import choice_costs
 from mitlc.worlds.model import BoolArray, IntArray
 
 
@@ -147,9 +149,9 @@ def evaluate(
     log = HeldLog()
     estimate = monte_carlo(log.track(batches(setting, seed)), policy, count)
     unseen = () if setting.finite else never_held(setting.automaton.propositions, log.held())
-    optimum, exact, bounds, lower = None, None, None, None
+    optimum, exact, bounds, lower, min_cost = None, None, None, None, None
     if setting.finite:
-        optimum, exact, bounds, lower = _exact(setting, policy, pomdp_bounds, clock)
+        optimum, exact, bounds, lower, min_cost = _exact(setting, policy, pomdp_bounds, clock)
     return Evaluation(
         world=setting.world.name,
         algo=setting.config.algo,
@@ -157,7 +159,7 @@ def evaluate(
         successes=estimate.successes,
         mean_return=estimate.mean_return,
         mean_cost=estimate.mean_cost,
-        min_cost=_min_cost(setting, clock) if estimate.mean_cost is not None else None,
+        min_cost=min_cost,
         exact=exact,
         optimum=optimum,
         pomdp=setting.world.is_pomdp,
@@ -170,17 +172,27 @@ def evaluate(
 
 def _exact(
     setting: Setting, policy: Any, pomdp_bounds: bool, clock: Deadline
-) -> tuple[float, float | None, dict[str, Any] | None, float | None]:
+) -> tuple[float, float | None, dict[str, Any] | None, float | None, float | None]:
     """A finite world's figures: the optimum, the policy's exact success (memoryless policies
-    on an MDP), Storm's POMDP bounds when asked, the observation-based lower bound."""
-    world, product, _ = setting.model()
+    on an MDP), Storm's POMDP bounds when asked, the observation-based lower bound, and with
+    costs the least expected cost among the policies of best success (``mitlc check``'s, from
+    the same values of ``pmax_horizon`` as the optimum)."""
+    world, product, tables = setting.model()
     horizon = world.horizon
-    optimum, _ = pmax_horizon(
-        product, horizon, keep_history=False, deadline=clock.at("pmax_horizon")
+    optimum, history = pmax_horizon(
+        product,
+        horizon,
+        keep_history=tables.cost is not None,
+        deadline=clock.at("pmax_horizon"),
     )
+    min_cost = None
+    if tables.cost is not None:
+        costs = choice_costs(product, tables.cost)
+        stage = clock.at("the least cost")
+        min_cost = least_cost(product, costs, horizon, values=history, deadline=stage).value
     exact = None
     if not world.is_pomdp and isinstance(policy, Memoryless):
-        exact = policy_success(product, _choices(policy, setting.model()[2]), horizon)
+        exact = policy_success(product, _choices(policy, tables), horizon)
     bounds, lower = None, None
     if world.is_pomdp:
         from mitlc.check.observed import ObservedBoundError, observed_bound
@@ -197,7 +209,7 @@ def _exact(
             bounds = storm_bounds(world, setting.automaton, horizon_success=True, deadline=clock)
         except LimitError:
             bounds = None
-    return optimum, exact, bounds, lower
+    return optimum, exact, bounds, lower, min_cost
 
 
 def _choices(policy: Memoryless, tables: Tables) -> IntArray:
@@ -216,18 +228,3 @@ def _choices(policy: Memoryless, tables: Tables) -> IntArray:
             allowed = s.allowed(np.array(r), lookup[:, None, None], tables.choice[None])
             chosen[r - 1, done] = policy.choices(tables.valid[None] & allowed)
     return chosen
-
-
-def _min_cost(setting: Setting, clock: Deadline) -> float | None:
-    """The least expected cost among the policies of best success (``mitlc check``'s), for a
-    finite world with costs."""
-    from mitlc.check.costs import least_cost
-    from mitlc.product.costs import product_costs
-
-    world, product, _ = setting.model()
-    if world.costs is None:
-        return None
-    _, history = pmax_horizon(product, world.horizon, deadline=clock.at("pmax_horizon"))
-    costs = product_costs(world, setting.automaton, product)
-    stage = clock.at("the least cost")
-    return least_cost(product, costs.choice, world.horizon, values=history, deadline=stage).value
