@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from mitlc.check.solve import mask_matrices, pmax_horizon
+from mitlc.check.solve import jumps_in_order, mask_matrices, pmax_horizon
 from mitlc.limits import Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, start_average
 from mitlc.task.monitor import TaskAutomaton
@@ -102,12 +102,7 @@ class _Step:
         self.ptr = product.choice_ptr[:-1]
         self.owner = np.repeat(np.arange(product.num_states), np.diff(product.choice_ptr))
         self.is_jump = product.action < 0
-        t = product.transitions
-        jumps = np.flatnonzero(self.is_jump)
-        targets = t.targets[t.indptr[jumps]]
-        self.jumps = list(
-            zip(self.owner[jumps].tolist(), targets.tolist(), jumps.tolist(), strict=True)
-        )
+        self.jumps = jumps_in_order(product)
         self.index = np.arange(product.num_choices)
 
     def back(

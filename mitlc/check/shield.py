@@ -54,7 +54,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.sparse import csr_matrix
 
-from mitlc.check.solve import mask_matrices, pmax_horizon
+from mitlc.check.solve import jumps_in_order, mask_matrices, pmax_horizon
 from mitlc.limits import Deadline
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, recursion_ends, start_average
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
@@ -292,10 +292,7 @@ class _Moves:
         probs = np.where(np.repeat(~is_jump, np.diff(t.indptr)), t.probs, 0.0)
         plain = csr_matrix((probs, t.targets, t.indptr), shape=(product.num_choices, n))
         owner = np.repeat(np.arange(n), np.diff(product.choice_ptr))
-        c = np.flatnonzero(is_jump)
-        sources, targets = owner[c].tolist(), t.targets[t.indptr[c]].tolist()
-        jumps = list(zip(sources, targets, c.tolist(), strict=True))
-        return _Moves(product, plain, is_jump, owner, jumps)
+        return _Moves(product, plain, is_jump, owner, jumps_in_order(product))
 
     def no_step_left(self) -> FloatArray:
         """``U[0]``: a violation only in the violated state."""

@@ -401,3 +401,13 @@ def _settle(values: FloatArray, jump_sources: IntArray, jump_targets: IntArray) 
     values[:, VIOLATED] = 0.0
     for source, target in zip(jump_sources.tolist(), jump_targets.tolist(), strict=True):
         values[:, source] = np.maximum(values[:, source], values[:, target])
+
+
+def jumps_in_order(product: Product) -> list[tuple[int, int, int]]:
+    """The product's epsilon jumps as ``(source, target, choice)``, in the order
+    :func:`pmax_horizon` settles them (:func:`_settle`): the passes that follow its values
+    (the shield's, the least cost's) take them in that order too."""
+    t = product.transitions
+    jumps = np.flatnonzero(product.action < 0)
+    sources = choice_sources(product)[jumps].tolist()
+    return list(zip(sources, t.targets[t.indptr[jumps]].tolist(), jumps.tolist(), strict=True))
