@@ -216,7 +216,7 @@ def test_a_dqn_run_with_counterfactuals_on_an_env_world_trains_and_evaluates(
     tmp_path: Path,
 ) -> None:
     """``dqn.crm`` on an env world (no product): the run learns the slippery chain's task
-    and ``eval`` measures it without an optimum; with shaping it is refused."""
+    and ``eval`` measures it without an optimum; with shaping too."""
     from mitlc.learn.evaluation.evaluate import evaluate
     from mitlc.learn.run import train
     from mitlc.learn.rundir.files import RunError
@@ -231,8 +231,7 @@ def test_a_dqn_run_with_counterfactuals_on_an_env_world_trains_and_evaluates(
     report = evaluate(tmp_path / "run", episodes=100)
     assert report.optimum is None and report.successes >= 90
     shaped = resolve({}, {**overrides, "shaping": 1.0}, discount=0.95, pomdp=False)
-    with pytest.raises(RunError, match="shaping"):
-        train(path, shaped, tmp_path / "shaped")
+    assert not train(path, shaped, tmp_path / "shaped").stopped
 
 
 # --- SB3's replay ------------------------------------------------------------------------------
@@ -302,7 +301,7 @@ def test_sb3_stores_counterfactuals_with_the_monitors_rewards(
 
 
 def test_sb3_crm_from_the_command_line_and_its_refusals(tmp_path: Path) -> None:
-    """``--set sb3.crm=true`` trains an sb3-dqn run; sb3-ppo (no replay) and shaping are
+    """``--set sb3.crm=true`` trains an sb3-dqn run, with shaping too; sb3-ppo (no replay) is
     refused."""
     pytest.importorskip("stable_baselines3")
     from typer.testing import CliRunner
@@ -324,4 +323,4 @@ def test_sb3_crm_from_the_command_line_and_its_refusals(tmp_path: Path) -> None:
     refused = run("sb3-ppo")
     assert refused.exit_code == 1 and "replay memory" in refused.output
     shaped = run("sb3-dqn", "shaping=1")
-    assert shaped.exit_code == 1 and "shaping" in shaped.output
+    assert shaped.exit_code == 0, shaped.output

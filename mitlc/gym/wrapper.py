@@ -104,7 +104,7 @@ from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
 from mitlc.labels.values import NO_MOMENT, Moment
 from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
 from mitlc.task.rules import VERDICT_CODES, TaskRewards
-from mitlc.worlds.model import BoolArray
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 ENV_ID = "mitlc/Task-v0"
 """``gymnasium.make(ENV_ID, env_id=..., spec=..., labels=..., horizon=...)``."""
@@ -311,12 +311,41 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def potential(self) -> float:
         """The task's shaping potential now (:mod:`mitlc.task.potential`; unscaled, 0 once the
         task is decided); needs ``potential`` set when the wrapper was made."""
+        here = self.distances()[None, :]
+        return float(self.potential_at(np.array([self._state.q]), here)[0])
+
+    @property
+    def reach(self) -> float:
+        """The distance that scales the potential's pull (``potential=REACH``; where it was 0,
+        the largest distance at the first reset, and 0 before it)."""
+        return self._reach
+
+    @property
+    def has_potential(self) -> bool:
+        """Whether the wrapper was made with ``potential`` (and reports it)."""
+        return self._shaping is not None
+
+    def potential_at(self, q: IntArray, distances: FloatArray) -> FloatArray:
+        """The shaping potential (unscaled) of automaton state ``q[r]`` at a position whose
+        distances to the propositions are ``distances[r]`` (as :meth:`distances` gives them):
+        what :meth:`potential` reports, for any task state (0 where ``q[r]`` is decided)."""
         if self._shaping is None:
             raise TaskWrapperError("potential: make the wrapper with potential=REACH")
-        q = self._state.q
-        if self.monitor.verdict(q) != PENDING:
-            return 0.0
-        return self._shaping.of(q, self._distances, self._reach or 1.0)
+        q = np.asarray(q, dtype=np.int64)
+        phi = self._shaping.at(q, distances, self._reach or 1.0)
+        result: FloatArray = np.where(self.monitor.verdicts(q) == PENDING, phi, 0.0)
+        return result
+
+    def distances(self) -> FloatArray:
+        """How far the position now is from each of the automaton's propositions (``nan``: no
+        distance), as the potential reads it; ``info["distances"]`` holds it after every step
+        and ``info["distances_left"]`` that of the position the step left."""
+        return self._distances_of(self._distances)
+
+    def _distances_of(self, found: list[float | None]) -> FloatArray:
+        if not found:
+            return np.full(len(self.automaton.propositions), np.nan)
+        return np.array([np.nan if d is None else d for d in found], dtype=np.float64)
 
     def state_dict(self) -> dict[str, Any]:
         """The run's state for a checkpoint: the task monitor's, the letter to read next,
@@ -378,6 +407,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                     return self._jump(a - self._env_actions)
                 raise ValueError(f"action {action!r} is not in {self.action_space}")
         monitor, read, env_reward = self.monitor, self._letter, 0.0
+        left = self._distances
         state, marks, new, reward, verdict, decided, success = monitor.step(self._state, read)
         if self._ended:  # the world stays on its last position: the env is not stepped
             obs, env_info = self._env_obs, self._env_info
@@ -423,6 +453,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             info["action_mask"] = self.masks_of(q).copy()
         if self._shaping is not None:
             info["potential"] = self.potential()
+            info["distances"] = self.distances()
+            info["distances_left"] = self._distances_of(left)
         return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -544,4 +576,5 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             info["action_mask"] = self.masks_of(state.q).copy()
         if self._shaping is not None:
             info["potential"] = self.potential()
+            info["distances"] = info["distances_left"] = self.distances()
         return info

@@ -217,7 +217,7 @@ class SB3Config:
     target_update_interval: int = 10_000
     crm: bool = False
     """DQN, SAC, TD3: counterfactual experience in the replay memory, every transition's over
-    the task's other states (:mod:`mitlc.learn.backends.sb3_crm`; not with shaping)."""
+    the task's other states (:mod:`mitlc.learn.backends.sb3_crm`), shaped as the run is."""
 
 
 @dataclass(frozen=True, slots=True)

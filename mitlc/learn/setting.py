@@ -97,6 +97,8 @@ def prepare(
                 f"{world_path}: a shield is computed from the exact product, which a world "
                 "that is not finite does not have (drop --shield / --shield-violation)"
             )
+        if config.shaping and not config.shaping_reach:
+            config = replace(config, shaping_reach=_first_reach(world, automaton, config.seed))
         return Setting(world_path, world, automaton, config)
     product = build_product(world, automaton, deadline=clock.at("the product"))
     simulated = tables(product, world)
@@ -105,6 +107,19 @@ def prepare(
     if config.shielded:
         simulated = _shielded(world, product, simulated, config, clock.at("the shield"))
     return Setting(world_path, world, automaton, config, product, simulated)
+
+
+def _first_reach(world: AnyWorld, automaton: DigitalAutomaton, seed: int) -> float:
+    """The reach of the shaping potential (``shaping_reach`` 0: automatic) of a world that is
+    not finite: the wrapper's own choice at a first reset with the run's seed, made once here so
+    that every env of the run, its counterfactuals and a resumed run share one potential (and
+    ``config.json`` records it)."""
+    wrapper = task_env(world, automaton, potential=0.0)
+    try:
+        wrapper.reset(seed=seed)
+        return wrapper.reach
+    finally:
+        wrapper.close()
 
 
 def _with_costs(

@@ -14,7 +14,7 @@ reached counts as it should. :func:`shaped` is that one rule.
 
 The potential of a position ``s`` (the env's) in automaton state ``q`` is
 
-    Phi(s, q) = -( d(q) + ENV_WEIGHT * min(1, e(s, q) / reach) + TIME_WEIGHT * u(q) )
+    Phi(s, q) = -( d(q) + ENV_WEIGHT * (1 - exp(-e(s, q) / reach)) + TIME_WEIGHT * u(q) )
 
 * ``d(q)``: the fewest letters from ``q`` to a transition that marks an acceptance set or
   enters a satisfied state (:func:`automaton_distance`);
@@ -23,7 +23,9 @@ The potential of a position ``s`` (the env's) in automaton state ``q`` is
   acceptance, or marks a set the empty letter does not): in a finite
   world the fewest steps (:func:`world_distances`), in an env the Euclidean distance of the
   labels' regions and positions (:mod:`mitlc.labels.distance`); 0 where no such proposition
-  has a distance; ``reach`` scales it (beyond it, the pull is flat);
+  has a distance; ``reach`` scales it, and the pull is ``1 - exp(-e / reach)`` (:func:`pull`):
+  0 where the proposition holds, below 1 however far, and never flat, so the gradient towards
+  the proposition is there wherever the run is;
 * ``u(q)``: the urgency, the largest of ``q``'s clocks over its bound (the clock view,
   :mod:`mitlc.automata.clocks`): the share of the current deadline already spent.
 
@@ -49,6 +51,16 @@ BoolArray2 = npt.NDArray[np.bool_]
 
 ENV_WEIGHT = 0.5
 TIME_WEIGHT = 0.25
+
+
+def pull(distance: FloatArray, reach: float) -> FloatArray:
+    """The env's pull of a distance: ``1 - exp(-distance / reach)``, in ``[0, 1]`` (1 at
+    ``inf``). It rises from 0 where the proposition holds with slope ``1 / reach`` and keeps
+    rising however far: a linear pull capped at ``reach`` is flat past it, and an agent started
+    there (PointMaze's start lies at about the reach from region A) sees no way towards the
+    proposition at all."""
+    result: FloatArray = -np.expm1(-np.asarray(distance, dtype=np.float64) / reach)
+    return result
 
 
 def fewest_steps(sources: IntArray, targets: IntArray, initial: FloatArray) -> FloatArray:
@@ -99,23 +111,43 @@ class TaskPotential:
     def of(self, q: int, env_distances: Sequence[float | None], reach: float) -> float:
         """``Phi`` of automaton state ``q`` where each proposition is ``env_distances[i]`` away
         (``None``: no distance)."""
-        near = [d for i, d in enumerate(env_distances) if d is not None and self.advancing[q, i]]
-        pull = min(min(near) / reach, 1.0) if near else 0.0
-        return -float(self.distance[q] + ENV_WEIGHT * pull + TIME_WEIGHT * self.urgency[q])
+        row = np.array([[np.nan if d is None else d for d in env_distances]], dtype=np.float64)
+        return float(self.at(np.array([q]), row, reach)[0])
+
+    def at(self, q: IntArray, env_distances: FloatArray, reach: float) -> FloatArray:
+        """``Phi`` of each row: automaton state ``q[r]`` where proposition ``i`` is
+        ``env_distances[r, i]`` away (``inf`` where it never holds, ``nan``: no distance; a row
+        of no columns: no distances at all)."""
+        q = np.asarray(q, dtype=np.int64)
+        known = np.asarray(env_distances, dtype=np.float64)
+        advancing = self.advancing[q] if known.shape[1] else np.zeros(known.shape, np.bool_)
+        near = self._near(advancing, known, reach)
+        phi: FloatArray = -(self.distance[q] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[q])
+        return phi
 
     def table(self, env_distances: FloatArray, reach: float) -> FloatArray:
         """``Phi`` of every (automaton state, position): ``env_distances[i, s]`` is how far
         position ``s`` is from proposition ``i`` (``inf`` where it never holds, ``nan``: no
         distance); rows are automaton states."""
-        known = ~np.isnan(env_distances)  # (P, S)
-        scaled = np.where(known, np.minimum(env_distances / reach, 1.0), np.inf)
-        chosen = np.where(self.advancing[:, :, None], scaled[None, :, :], np.inf)  # (Q, P, S)
-        pull = chosen.min(axis=1) if chosen.shape[1] else np.full((len(self.distance), 0), 0.0)
-        pull = np.where(np.isfinite(pull), pull, 0.0)
+        by_position = np.asarray(env_distances, dtype=np.float64).T  # (S, P)
+        near = self._near(self.advancing[:, None, :], by_position[None, :, :], reach)  # (Q, S)
         phi: FloatArray = -(
-            self.distance[:, None] + ENV_WEIGHT * pull + TIME_WEIGHT * self.urgency[:, None]
+            self.distance[:, None] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[:, None]
         )
         return phi
+
+    @staticmethod
+    def _near(advancing: BoolArray2, env_distances: FloatArray, reach: float) -> FloatArray:
+        """The pull (:func:`pull`) of the nearest proposition that advances, over the last axis
+        (0 where none does or none has a distance)."""
+        known = ~np.isnan(env_distances)
+        scaled = np.where(known, pull(np.where(known, env_distances, 0.0), reach), np.inf)
+        chosen = np.where(advancing & known, scaled, np.inf)
+        if chosen.shape[-1] == 0:
+            return np.zeros(chosen.shape[:-1])
+        least = chosen.min(axis=-1)
+        near: FloatArray = np.where(np.isfinite(least), least, 0.0)
+        return near
 
 
 def task_potential(automaton: DigitalAutomaton) -> TaskPotential:

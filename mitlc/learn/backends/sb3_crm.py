@@ -22,13 +22,19 @@ starts, and an episode restarts there), a world step advances it by the letter r
 the info's ``automaton_state`` and ``step``, and an env whose run the buffer did not follow
 from its start (a buffer put in mid-episode) gives no counterfactuals until its next episode.
 
+**Shaping** (a run's ``shaping``: SB3 learns on :class:`mitlc.gym.shaping.ShapedReward`): a
+counterfactual's reward is shaped as the wrapper would have shaped it in its own task state,
+``scale * (gamma * Phi(q', s') - Phi(q, s))``, the potentials the wrapper's
+(:meth:`~mitlc.learn.learners.crm_env.EnvCounterfactuals.potentials`, from the distances the
+step's info reports: ``distances_left`` of the position left, ``distances`` of the one
+reached).
+
 **Skipped**: the transitions of :meth:`~mitlc.learn.learners.crm_env.EnvCounterfactuals.tells`
-(a jump or an invalid action, an env that has ended); shaping is refused (the potential of the
-other task states is not known here); SB3's ``optimize_memory_usage`` too (each stored
-transition needs its own next observation). SB3 stores transitions ``n_envs`` at a time (one
-row per env): counterfactuals wait in a queue until they fill a row, so up to ``n_envs - 1`` of
-them are stored one step late. The experienced transitions are stored as SB3 stores them;
-:attr:`CounterfactualReplay.counterfactual` marks the others.
+(a jump or an invalid action, an env that has ended). SB3's ``optimize_memory_usage`` is
+refused (each stored transition needs its own next observation). SB3 stores transitions
+``n_envs`` at a time (one row per env): counterfactuals wait in a queue until they fill a row,
+so up to ``n_envs - 1`` of them are stored one step late. The experienced transitions are
+stored as SB3 stores them; :attr:`CounterfactualReplay.counterfactual` marks the others.
 
 This module imports Stable-Baselines3: import it only where SB3 is installed.
 """
@@ -54,6 +60,7 @@ from mitlc.learn.learners.crm_env import (
 )
 from mitlc.learn.rundir.files import RunError
 from mitlc.task import MonitorState
+from mitlc.task.potential import shaped
 from mitlc.worlds.model import BoolArray, IntArray
 
 Flat = npt.NDArray[np.float32]
@@ -125,6 +132,8 @@ class CounterfactualReplay(ReplayBuffer):
         *,
         task: FlatTask,
         seed: int = 0,
+        shaping: float = 0.0,
+        gamma: float = 1.0,
     ) -> None:
         if optimize_memory_usage:
             raise CounterfactualError("sb3.crm: each transition needs its own next observation, "
@@ -132,6 +141,8 @@ class CounterfactualReplay(ReplayBuffer):
         super().__init__(buffer_size, observation_space, action_space, device, n_envs,
                          optimize_memory_usage, handle_timeout_termination)  # fmt: skip
         self.task, self.rng = task, np.random.default_rng(seed)
+        self.shaping, self.gamma = shaping, gamma
+        """The scale of the shaping potential (0: none) and the discount it is shaped at."""
         self.counterfactual = np.zeros((self.buffer_size, self.n_envs), dtype=np.bool_)
         """Which stored transitions are counterfactual."""
         self.made = 0
@@ -200,6 +211,13 @@ class CounterfactualReplay(ReplayBuffer):
         told: BoolArray = crm.tells(letter, ended) & known
         rows: Rows = crm.rows(q, frontier, letter, env_reward, told, self.rng, rounds)
         i = rows.source
+        reward = rows.reward
+        if self.shaping:
+            left, reached = (np.array([info[key] for info in infos], dtype=np.float64)
+                             for key in ("distances_left", "distances"))  # fmt: skip
+            left_phi, reached_phi = crm.potentials(rows, left, reached)
+            k, gammas = self.shaping, np.full(len(reward), self.gamma)
+            reward = shaped(reward, gammas, k * left_phi, k * reached_phi)
         steps = np.array([info.get("step", 0) for info in infos], dtype=np.int64)[i]
         truncated = ~rows.terminated & (steps >= crm.horizon)
         flat = np.asarray(obs).reshape(self.n_envs, -1)
@@ -208,7 +226,7 @@ class CounterfactualReplay(ReplayBuffer):
             "obs": self.task.observe(flat[i], rows.q, rows.frontier),
             "next_obs": self.task.observe(after[i], rows.next_q, rows.next_frontier),
             "action": np.asarray(action).reshape(self.n_envs, self.action_dim)[i],
-            "reward": rows.reward.astype(np.float32),
+            "reward": reward.astype(np.float32),
             "done": (rows.terminated | truncated).astype(np.float32),
             "timeout": truncated,
         }
@@ -243,12 +261,10 @@ def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
     if config.algo not in OFF_POLICY:
         raise RunError(f"sb3.crm: counterfactual experience goes into a replay memory: "
                        f"{', '.join(OFF_POLICY)}, not {config.algo}")  # fmt: skip
-    if config.shaping:
-        raise RunError("sb3.crm takes no shaping yet (the potential of the other task states "
-                       "is not known here)")  # fmt: skip
     try:
         task = FlatTask.of(env)
     except CounterfactualError as err:
         raise RunError(f"sb3.crm: {err}") from None
-    kwargs = {"task": task, "seed": config.seed}
+    kwargs = {"task": task, "seed": config.seed, "shaping": config.shaping,
+              "gamma": config.discount.gamma}  # fmt: skip
     return {"replay_buffer_class": CounterfactualReplay, "replay_buffer_kwargs": kwargs}

@@ -187,6 +187,7 @@ class VectorTask:
         self.returns += reward
         counted = self.steps + 1
         steps = _entry(infos, final, done, "step", counted).astype(np.int64)
+        shaped = "distances" in infos
         result = Step(
             reward=reward,
             accepting=_entry(infos, final, done, "accepting", np.zeros(self.num_envs, bool)),
@@ -204,6 +205,8 @@ class VectorTask:
             letter=_entry(infos, final, done, "letter", np.full(self.num_envs, -1)),
             env_reward=_entry(infos, final, done, "env_reward", np.zeros(self.num_envs)),
             env_ended=_entry(infos, final, done, "env_ended", np.zeros(self.num_envs, bool)),
+            distances=_entry(infos, final, done, "distances", None) if shaped else None,
+            distances_left=_entry(infos, final, done, "distances_left", None) if shaped else None,
         )
         self.returns[done] = 0.0
         self.steps = np.where(done, 0, steps)

@@ -214,6 +214,11 @@ class Step:
     """The env's own reward of the step (``info["env_reward"]`` of wrapped envs)."""
     env_ended: BoolArray | None = None
     """Whether the env had ended by the end of the step (``info["env_ended"]``)."""
+    distances: FloatArray | None = None
+    """How far the position reached is from each proposition (``info["distances"]`` of wrapped
+    envs made with a potential; rows are episodes)."""
+    distances_left: FloatArray | None = None
+    """The same of the position the step left (``info["distances_left"]``)."""
     blocked: BoolArray | None = None
     """With a shield: whether the step's action was one the shield blocks (only ever under
     an audit: an enforced shield refuses them)."""

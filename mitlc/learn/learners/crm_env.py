@@ -47,6 +47,7 @@ not made), by :meth:`EnvCounterfactuals.tells`:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,14 +98,16 @@ class EnvCounterfactuals:
         horizon: int,
         masks: BoolArray | None = None,
         limit: int = LIMIT,
+        potential: Callable[[IntArray, FloatArray], FloatArray] | None = None,
     ) -> None:
         """``monitor``: the task's, over an automaton of ``num_states`` states; the wrapper's
-        ``reward_mode`` (``add_env_reward``), ``horizon`` and, with ``Discrete`` actions, its
-        action masks by automaton state (``masks[q]``, :meth:`TaskWrapper.masks_of`)."""
+        ``reward_mode`` (``add_env_reward``), ``horizon``, with ``Discrete`` actions its
+        action masks by automaton state (``masks[q]``, :meth:`TaskWrapper.masks_of`), and where
+        it has one its shaping potential (:meth:`TaskWrapper.potential_at`)."""
         if limit < 1:
             raise CounterfactualError(f"limit: expected a positive number, got {limit}")
         self.monitor, self.add_env_reward, self.horizon = monitor, add_env_reward, horizon
-        self.masks, self.limit = masks, limit
+        self.masks, self.limit, self.potential = masks, limit, potential
         pending = np.flatnonzero(monitor.verdicts(np.arange(num_states)) == PENDING)
         self.num_frontiers = max(monitor.all_sets, 1)
         """The frontiers a round can have: ``0 .. num_frontiers - 1``."""
@@ -132,6 +135,7 @@ class EnvCounterfactuals:
         return EnvCounterfactuals(
             monitor, len(automaton.states), add_env_reward=wrapper.reward_mode == "add",
             horizon=wrapper.horizon, masks=masks, limit=limit,
+            potential=wrapper.potential_at if wrapper.has_potential else None,
         )  # fmt: skip
 
     @property
@@ -204,6 +208,23 @@ class EnvCounterfactuals:
             terminated=np.asarray(out.terminated, dtype=np.bool_), next_q=out.q,
             next_frontier=out.frontier,
         )  # fmt: skip
+
+    def potentials(
+        self, rows: Rows, left: FloatArray, reached: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The wrapper's shaping potential (unscaled) of each counterfactual's task state where
+        its step started, and of the task state it reached where the step ended (0 where the
+        task is decided): ``left[i]`` and ``reached[i]`` are the distances
+        (``info["distances_left"]``, ``info["distances"]``) of experienced step ``i``. The
+        potential of a task state at a position is the wrapper's, whatever state the episode
+        was in, so a counterfactual is shaped as the wrapper would have shaped it."""
+        if self.potential is None:
+            raise CounterfactualError("shaping counterfactuals needs the wrapper's potential "
+                                      "(a TaskWrapper made with potential=REACH)")  # fmt: skip
+        i = rows.source
+        before = self.potential(rows.q, np.asarray(left, dtype=np.float64)[i])
+        after = self.potential(rows.next_q, np.asarray(reached, dtype=np.float64)[i])
+        return before, after
 
     def valid(self, q: IntArray) -> BoolArray:
         """The wrapper's valid actions in each automaton state ``q`` (its action masks)."""

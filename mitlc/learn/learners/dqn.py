@@ -31,6 +31,7 @@ from mitlc.learn.config import DQNConfig, TrainConfig
 from mitlc.learn.device import resolve_device
 from mitlc.learn.envs.vec import Step, Tables
 from mitlc.learn.learners.base import (
+    EnvShaping,
     Episodes,
     Learner,
     Policy,
@@ -62,6 +63,7 @@ from mitlc.learn.learners.nets import (
     tensors,
     torch_seed,
 )
+from mitlc.task.potential import shaped
 from mitlc.worlds.model import BoolArray, IntArray
 
 
@@ -120,14 +122,12 @@ class DQNLearner(Learner):
         (:meth:`Encoder.of_spaces`) and its ``num_actions``."""
         configure_torch()
         self.tables, self.config, self.rng, self.shaping = tables, config, rng, shaping
-        if isinstance(counterfactuals, EnvCounterfactuals) and shaping is not None:
-            raise ValueError("counterfactual experience on an env does not know the shaping "
-                             "potential of other task states")  # fmt: skip
         self.counterfactuals = counterfactuals
         """With them (``dqn.crm``), every world step also stores the transitions of every
         other automaton state and frontier it tells about: of a finite product's tables
         (:mod:`mitlc.learn.learners.crm`), or of a wrapped env's task
-        (:mod:`mitlc.learn.learners.crm_env`, without shaping)."""
+        (:mod:`mitlc.learn.learners.crm_env`), shaped with the wrapper's potential of their
+        own task states."""
         self.settings: DQNConfig = config.dqn
         s = self.settings
         self.num_envs = s.num_envs
@@ -257,13 +257,19 @@ class DQNLearner(Learner):
         rows = crm.rows(entries["automaton"], entries["mask"], step.letter, step.env_reward,
                         told, self.rng)  # fmt: skip
         i = rows.source
-        gammas = step_discounts(rows.accepting, self.config.discount)
+        reward, gammas = rows.reward, step_discounts(rows.accepting, self.config.discount)
+        if isinstance(self.shaping, EnvShaping):
+            if step.distances is None or step.distances_left is None:
+                raise ValueError("shaped counterfactuals need the distances the episodes report")
+            before, after = crm.potentials(rows, step.distances_left, step.distances)
+            scale = self.shaping.scale
+            reward = shaped(reward, gammas, scale * before, scale * after)
         return {
             "observation": entries["observation"][i],
             "automaton": rows.q,
             "mask": rows.frontier,
             "action": entries["action"][i],
-            "reward": rows.reward * self.settings.reward_scale,
+            "reward": reward * self.settings.reward_scale,
             "gamma": gammas,
             "terminated": rows.terminated,
             "next_observation": entries["next_observation"][i],

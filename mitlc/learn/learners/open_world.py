@@ -9,7 +9,7 @@ observation (its readable part, :func:`mitlc.gym.observations.readable`, through
 env's
 observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). DQN
 takes counterfactual experience over the task's states (``dqn.crm``,
-:mod:`mitlc.learn.learners.crm_env`; not with shaping); tabular Q-learning does not yet. The run
+:mod:`mitlc.learn.learners.crm_env`, shaped as the run is); tabular Q-learning does not yet. The run
 directory, metrics and checkpoints are those of every run (:mod:`mitlc.learn.run`). A
 checkpoint holds the learner, the tally and, for each env, the task monitor's state and, where
 the env has one (a continuous world's robot), the env's state, so a resumed run of a
@@ -47,9 +47,6 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         raise RunError("counterfactual experience with tabular Q-learning needs a finite "
                        "product: not here (use --algo dqn with dqn.crm)")  # fmt: skip
     crm = config.algo == "dqn" and config.dqn.crm
-    if crm and config.shaping:
-        raise RunError("counterfactual experience on an env takes no shaping yet (the "
-                       "potential of the other task states is not known here)")  # fmt: skip
     from mitlc.learn.learners.base import EnvShaping
     from mitlc.learn.learners.encoder import Encoder, task_features
 
