@@ -11,7 +11,7 @@ learned by two arms (:data:`ARMS`) at the same budget and seeds:
 * ``mitlc``: mitlc's observation and shaping (``--set task_obs=clocks --set shaping=1``, and
   ``sb3.crm=true`` / ``dqn.crm=true`` where the learner's section has a ``crm`` field and takes
   it: SB3's off-policy algorithms, mitlc's DQN). A run whose ``crm`` the learner refuses (e.g.
-  not with shaping) is run again without it, and the table says so.
+  a lazy automaton's task) is run again without it, and the table says so.
 
 The paper's case 2 has a third arm, ``mitlc-q``: mitlc's tabular Q-learning on what the agent
 sees (``--algo q --episodes 200000 --set shaping=1``: the observation, the automaton state and
