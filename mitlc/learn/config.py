@@ -249,9 +249,9 @@ class TrainConfig:
     distance to a proposition that advances it, the share of the deadline spent); 0 turns it
     off."""
     shaping_reach: float = 0.0
-    """The env distance that scales a proposition's pull, ``1 - exp(-distance / reach)`` (0:
-    in a finite world the longest distance in steps, in an env the largest distance at a first
-    reset with the run's seed, resolved when the run is set up)."""
+    """The env distance past which a proposition's pull is flat (0: in a finite world the
+    longest distance in steps, in an env the largest distance at a first reset with the run's
+    seed, resolved when the run is set up)."""
     task_obs: TaskObs = "auto"
     """What the deep learners and the SB3 backends see of the task: ``state``, a one-hot of the
     digital automaton's state; ``clocks``, the T-LDGBA's location (one-hot) and its clocks

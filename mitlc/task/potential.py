@@ -14,7 +14,7 @@ reached counts as it should. :func:`shaped` is that one rule.
 
 The potential of a position ``s`` (the env's) in automaton state ``q`` is
 
-    Phi(s, q) = -( d(q) + ENV_WEIGHT * (1 - exp(-e(s, q) / reach)) + TIME_WEIGHT * u(q) )
+    Phi(s, q) = -( d(q) + ENV_WEIGHT * min(1, e(s, q) / reach) + TIME_WEIGHT * u(q) )
 
 * ``d(q)``: the fewest letters from ``q`` to a transition that marks an acceptance set or
   enters a satisfied state (:func:`automaton_distance`);
@@ -23,9 +23,7 @@ The potential of a position ``s`` (the env's) in automaton state ``q`` is
   acceptance, or marks a set the empty letter does not): in a finite
   world the fewest steps (:func:`world_distances`), in an env the Euclidean distance of the
   labels' regions and positions (:mod:`mitlc.labels.distance`); 0 where no such proposition
-  has a distance; ``reach`` scales it, and the pull is ``1 - exp(-e / reach)`` (:func:`pull`):
-  0 where the proposition holds, below 1 however far, and never flat, so the gradient towards
-  the proposition is there wherever the run is;
+  has a distance; ``reach`` scales it (:func:`pull`; beyond it, the pull is flat);
 * ``u(q)``: the urgency, the largest of ``q``'s clocks over its bound (the clock view,
   :mod:`mitlc.automata.clocks`): the share of the current deadline already spent.
 
@@ -54,12 +52,10 @@ TIME_WEIGHT = 0.25
 
 
 def pull(distance: FloatArray, reach: float) -> FloatArray:
-    """The env's pull of a distance: ``1 - exp(-distance / reach)``, in ``[0, 1]`` (1 at
-    ``inf``). It rises from 0 where the proposition holds with slope ``1 / reach`` and keeps
-    rising however far: a linear pull capped at ``reach`` is flat past it, and an agent started
-    there (PointMaze's start lies at about the reach from region A) sees no way towards the
-    proposition at all."""
-    result: FloatArray = -np.expm1(-np.asarray(distance, dtype=np.float64) / reach)
+    """The env's pull of a distance: ``min(1, distance / reach)`` (1 at ``inf``), flat past
+    ``reach``. A pull that keeps rising past it (``1 - exp(-distance / reach)``) was tried on
+    PointMaze and the finite worlds and did not do better (``docs/deadlines.md``)."""
+    result: FloatArray = np.minimum(np.asarray(distance, dtype=np.float64) / reach, 1.0)
     return result
 
 
