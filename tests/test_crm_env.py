@@ -219,7 +219,6 @@ def test_a_dqn_run_with_counterfactuals_on_an_env_world_trains_and_evaluates(
     and ``eval`` measures it without an optimum; with shaping too."""
     from mitlc.learn.evaluation.evaluate import evaluate
     from mitlc.learn.run import train
-    from mitlc.learn.rundir.files import RunError
 
     path = tmp_path / "chain.yaml"
     path.write_text(CHAIN)
