@@ -9,7 +9,8 @@ observation (its readable part, :func:`mitlc.gym.observations.readable`, through
 env's
 observation is discrete (:class:`mitlc.learn.learners.qlearning_env.ObservedQLearner`). DQN
 takes counterfactual experience over the task's states (``dqn.crm``,
-:mod:`mitlc.learn.learners.crm_env`, shaped as the run is); tabular Q-learning does not yet. The run
+:mod:`mitlc.learn.learners.crm_env`, shaped as the run is), and so does tabular Q-learning
+(``q.crm``, without shaping, which it takes on a finite product only). The run
 directory, metrics and checkpoints are those of every run (:mod:`mitlc.learn.run`). A
 checkpoint holds the learner, the tally and, for each env, the task monitor's state and, where
 the env has one (a continuous world's robot), the env's state, so a resumed run of a
@@ -21,7 +22,7 @@ estimate of every kind of world): no exact optimum exists, and the reports say s
 
 from __future__ import annotations
 
-from typing import cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from gymnasium.spaces import Discrete
@@ -29,6 +30,9 @@ from gymnasium.spaces import Discrete
 from mitlc.learn.learners.base import Learner
 from mitlc.learn.rundir.files import RunError
 from mitlc.learn.setting import Setting, task_vector_of
+
+if TYPE_CHECKING:
+    from mitlc.learn.learners.crm_env import EnvCounterfactuals
 
 LEARNERS = ("q", "dqn", "drqn")
 """The learners of a world that is not finite (``q`` for a discrete observation only)."""
@@ -43,10 +47,7 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             f"{config.algo} does not learn this world yet (it is not finite: "
             f"use --algo {', '.join(LEARNERS)})"
         )
-    if config.algo == "q" and config.q.crm:
-        raise RunError("counterfactual experience with tabular Q-learning needs a finite "
-                       "product: not here (use --algo dqn with dqn.crm)")  # fmt: skip
-    crm = config.algo == "dqn" and config.dqn.crm
+    crm = (config.algo == "dqn" and config.dqn.crm) or (config.algo == "q" and config.q.crm)
     from mitlc.learn.learners.base import EnvShaping
     from mitlc.learn.learners.encoder import Encoder, task_features
 
@@ -68,7 +69,8 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         from mitlc.learn.learners.qlearning_env import ObservedQLearner
 
         return ObservedQLearner(int(own.n), num_q, setting.automaton.num_sets,
-                                probe.num_actions, config, rng)  # fmt: skip
+                                probe.num_actions, config, rng,
+                                counterfactuals=_counterfactuals(probe, crm))  # fmt: skip
     recurrent = config.algo == "drqn"
     encoder = Encoder.of_spaces(
         own,
@@ -87,12 +89,18 @@ def make_open_learner(setting: Setting, rng: np.random.Generator) -> Learner:
             None, config, rng, shaping, encoder=encoder, num_actions=probe.num_actions,
             horizon=setting.world.horizon,
         )  # fmt: skip
-    from mitlc.learn.learners.crm_env import CounterfactualError, EnvCounterfactuals
     from mitlc.learn.learners.dqn import DQNLearner
 
-    try:
-        counterfactuals = EnvCounterfactuals.of(probe.envs[0]) if crm else None
-    except CounterfactualError as err:
-        raise RunError(f"dqn.crm: {err}") from None
-    return DQNLearner(None, config, rng, shaping, counterfactuals, encoder=encoder,
+    return DQNLearner(None, config, rng, shaping, _counterfactuals(probe, crm), encoder=encoder,
                       num_actions=probe.num_actions)  # fmt: skip
+
+
+def _counterfactuals(probe: Any, crm: bool) -> EnvCounterfactuals | None:
+    """The task states of the world's wrapped env, for counterfactual experience (``None``
+    without it); a :class:`RunError` where they cannot be known."""
+    from mitlc.learn.learners.crm_env import CounterfactualError, EnvCounterfactuals
+
+    try:
+        return EnvCounterfactuals.of(probe.envs[0]) if crm else None
+    except CounterfactualError as err:
+        raise RunError(f"crm: {err}") from None

@@ -6,7 +6,14 @@ policy is memoryless, the policy class of the exact lower bound
 :func:`mitlc.check.observed.observed_bound` less the step (Q-learning on observations: Jaakkola,
 Singh and Jordan, NIPS 1994; Loch and Singh, ICML 1998). The update is
 :class:`mitlc.learn.learners.qlearning.QLearner`'s (Watkins and Dayan, 1992), the one
-definition of it."""
+definition of it.
+
+On a wrapped env it takes counterfactual experience (``q.crm``; Toro Icarte et al., JAIR 2022):
+each step the env took also updates the same observation, action and next observation in the
+task's other states, with the monitor's step over them
+(:class:`mitlc.learn.learners.crm_env.EnvCounterfactuals`, at most
+:data:`~mitlc.learn.learners.crm_env.LIMIT` of them a step), in the same update as the
+experienced step."""
 
 from __future__ import annotations
 
@@ -15,7 +22,8 @@ import numpy as np
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Policy, epsilon_at, masked_argmax, random_valid
-from mitlc.learn.learners.crm import Batch
+from mitlc.learn.learners.crm import Batch, concatenate
+from mitlc.learn.learners.crm_env import EnvCounterfactuals
 from mitlc.learn.learners.qlearning import QLearner
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -44,12 +52,17 @@ class ObservedQLearner(QLearner):
         config: TrainConfig,
         rng: np.random.Generator,
         phi: FloatArray | None = None,
+        counterfactuals: EnvCounterfactuals | None = None,
     ) -> None:
         """``phi``: on a finite POMDP's product, the potential of each product state (the
         task's shaping, :func:`mitlc.learn.learners.base.product_potential`), read from the
-        true states the simulator keeps; ``None``: no shaping."""
+        true states the simulator keeps; ``None``: no shaping. ``counterfactuals``: a wrapped
+        env's task states, for counterfactual experience (not with ``phi``)."""
+        if counterfactuals is not None and phi is not None:
+            raise ValueError("counterfactuals on observations take no product potential")
         self.tables = None  # type: ignore[assignment]
         self.config, self.rng, self.phi, self.counterfactuals = config, rng, phi, None
+        self.env_counterfactuals = counterfactuals
         self.settings = config.q
         self.num_envs, self.num_q = self.settings.num_envs, num_q
         shape = (1 << num_sets, num_observations * num_q, num_actions)
@@ -60,8 +73,9 @@ class ObservedQLearner(QLearner):
         """One epsilon-greedy step of every episode and its update."""
         s = self.settings
         self._epsilon = epsilon_at(fraction, s.epsilon_start, s.epsilon_end, s.epsilon_decay)
-        state = np.asarray(env.observation, dtype=np.int64) * self.num_q + env.automaton
-        mask, valid, before = env.mask, env.valid_actions(), env.state
+        seen, automaton = np.array(env.observation, dtype=np.int64), np.array(env.automaton)
+        state = seen * self.num_q + automaton
+        mask, valid, before = np.array(env.mask), env.valid_actions(), env.state
         greedy = masked_argmax(self.q_table[mask, state], valid)
         explore = self.rng.random(env.num_envs) < self._epsilon
         actions = np.where(explore, random_valid(self.rng, valid), greedy)
@@ -72,8 +86,34 @@ class ObservedQLearner(QLearner):
                       step.next_mask, after)  # fmt: skip
         alpha = s.alpha + (s.alpha_end - s.alpha) * min(1.0, fraction)
         best = self._best(step.next_mask, after, step.next_valid)
-        self._update(batch, alpha, best, (before, step.next_state))
+        crm = self.env_counterfactuals
+        if crm is None:
+            self._update(batch, alpha, best, (before, step.next_state))
+            return step
+        extra, extra_best = self._counterfactual(crm, (seen, automaton, mask), actions, step)
+        self._update(concatenate(batch, extra), alpha, np.concatenate([best, extra_best]))
         return step
+
+    def _counterfactual(
+        self,
+        crm: EnvCounterfactuals,
+        before: tuple[IntArray, IntArray, IntArray],
+        actions: IntArray,
+        step: Step,
+    ) -> tuple[Batch, FloatArray]:
+        """The counterfactual transitions of a step (``before``: the episodes' observation,
+        automaton state and frontier before it) and the best value of each one's next state."""
+        observation, automaton, frontier = before
+        if step.letter is None or step.env_reward is None or step.env_ended is None:
+            raise ValueError("counterfactual experience needs the letters the episodes read")
+        told = crm.tells(step.letter, step.env_ended)
+        rows = crm.rows(automaton, frontier, step.letter, step.env_reward, told, self.rng)
+        i = rows.source
+        seen = observation[i] * self.num_q
+        reached = np.asarray(step.next_observation, dtype=np.int64)[i] * self.num_q
+        batch = Batch(rows.frontier, seen + rows.q, actions[i], rows.reward, rows.accepting,
+                      rows.terminated, rows.next_frontier, reached + rows.next_q)  # fmt: skip
+        return batch, self._best(rows.next_frontier, batch.next_state, crm.valid(rows.next_q))
 
     def _best(self, mask: IntArray, state: IntArray, valid: BoolArray) -> FloatArray:
         best: FloatArray = np.where(valid, self.q_table[mask, state], -np.inf).max(axis=1)
