@@ -129,7 +129,8 @@ def test_advancing_propositions_of_a_sequence() -> None:
     # time spent raises the urgency, which lowers the potential
     waited, _ = automaton.successor(after_a, 0)
     assert potential.urgency[waited] > potential.urgency[after_a]
-    assert potential.of(waited, [None, None], 1.0) < potential.of(after_a, [None, None], 1.0)
+    later, sooner = potential.at(np.array([waited, after_a]), np.full((2, 2), np.nan), 1.0)
+    assert later < sooner
 
 
 def test_distances_of_regions_and_positions() -> None:

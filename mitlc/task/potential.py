@@ -33,7 +33,6 @@ distance and of the time.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,12 +102,6 @@ class TaskPotential:
     """``advancing[q, i]``: proposition ``i`` advances state ``q``."""
     urgency: FloatArray
     """``u(q)`` per automaton state."""
-
-    def of(self, q: int, env_distances: Sequence[float | None], reach: float) -> float:
-        """``Phi`` of automaton state ``q`` where each proposition is ``env_distances[i]`` away
-        (``None``: no distance)."""
-        row = np.array([[np.nan if d is None else d for d in env_distances]], dtype=np.float64)
-        return float(self.at(np.array([q]), row, reach)[0])
 
     def at(self, q: IntArray, env_distances: FloatArray, reach: float) -> FloatArray:
         """``Phi`` of each row: automaton state ``q[r]`` where proposition ``i`` is
