@@ -149,7 +149,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         ``env_end`` says how the steps after the env has ended are taken; ``task_obs`` shows
         the task's state as the automaton state or by its clocks; with ``potential`` (the
         env distance at which a label's pull is flat; 0: the largest at the first reset)
-        ``info["potential"]`` is the task's shaping potential (module docstring)."""
+        ``info["potential"]`` is the task's shaping potential (module docstring), and
+        ``info["distances"]`` / ``info["distances_left"]`` how far the positions reached and
+        left are from each proposition (:meth:`potential_at` reads them for any task state)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
