@@ -231,7 +231,7 @@ def test_shaping_reads_the_wrappers_potential_without_a_product(tmp_path: Path) 
     right, seen = 1, 0
     for _ in range(8):
         before = shaping.before(vector)
-        assert (before < 0).all()  # still pending: some distance to go
+        assert (before > 0).all()  # still pending, and not at the farthest a task can be
         step = vector.step(np.full(3, right))
         reward, gammas = learning_signal(step, before, config, shaping)
         assert step.next_potential is not None

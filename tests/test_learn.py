@@ -232,9 +232,11 @@ def test_distance_to_acceptance() -> None:
     product = build_product(world, automaton)
     phi = product_potential(tables(product, world), world, automaton, 2.0)
     assert phi[0] == phi[1] == 0.0
-    # three letters from acceptance, at most half a step more for the world's distance to a,
-    # nothing yet of the deadline spent
-    assert -6.0 - 1.0 <= phi[product.initial] <= -6.0
+    # C (the largest d, a violated state's 4, plus the weights 0.5 and 0.25) less three letters
+    # from acceptance, less at most half a step for the world's distance to a, nothing yet of
+    # the deadline spent; scaled by 2
+    c = 4.0 + 0.5 + 0.25
+    assert 2 * (c - 3.0 - 0.5) <= phi[product.initial] <= 2 * (c - 3.0)
 
 
 # -- tabular Q-learning, runs, evaluation ------------------------------------------------------

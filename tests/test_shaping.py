@@ -77,7 +77,8 @@ def test_shaping_keeps_the_optimal_policies_exactly(seed: int) -> None:
     product = build_product(world, automaton)
     t = tables(product, world)
     phi = product_potential(t, world, automaton, 2.0)
-    assert (phi[t.world_state < 0] == 0.0).all() and (phi[t.world_state >= 0] < 0).any()
+    live = phi[t.world_state >= 0]
+    assert (phi[t.world_state < 0] == 0.0).all() and (live >= 0).all() and (live > 0).any()
     plain, shaped = optimal_q(t, 0.9, None), optimal_q(t, 0.9, phi)
     valid = t.choice >= 0
     assert np.allclose((shaped + phi[:, None])[valid], plain[valid], atol=1e-8)

@@ -14,7 +14,7 @@ reached counts as it should. :func:`shaped` is that one rule.
 
 The potential of a position ``s`` (the env's) in automaton state ``q`` is
 
-    Phi(s, q) = -( d(q) + ENV_WEIGHT * min(1, e(s, q) / reach) + TIME_WEIGHT * u(q) )
+    Phi(s, q) = C - ( d(q) + ENV_WEIGHT * min(1, e(s, q) / reach) + TIME_WEIGHT * u(q) )
 
 * ``d(q)``: the fewest letters from ``q`` to a transition that marks an acceptance set or
   enters a satisfied state (:func:`automaton_distance`);
@@ -28,7 +28,18 @@ The potential of a position ``s`` (the env's) in automaton state ``q`` is
   :mod:`mitlc.automata.clocks`): the share of the current deadline already spent.
 
 The weights keep one step of the automaton worth more than the whole pull of the env's
-distance and of the time.
+distance and of the time. ``C`` (:attr:`TaskPotential.offset`) is the largest the bracket can
+be, the largest ``d`` plus both weights, so ``Phi >= 0`` wherever the task is pending, and 0 where
+it ends decided.
+
+**Why ``C``: an optimistic start.** Shaping with ``Phi`` is the same as learning without it from
+initial values ``Phi`` (Wiewiora, "Potential-based shaping and Q-value initialization are
+equivalent", JAIR 19, 2003). A learner's values start near 0, so without ``C`` (``Phi <= 0``)
+every pending state starts *below* what it will learn: the states an agent visits rise and look
+better than those it has not visited, and an agent that has not met a success yet stays where
+it has been (PointMaze parked in its start's corner). With ``C`` every pending state starts at
+or above its value, so the states not yet visited look the better. ``C`` is a constant on the
+pending states and ``Phi`` stays 0 at the end, so the policies are unchanged as before.
 """
 
 from __future__ import annotations
@@ -103,6 +114,11 @@ class TaskPotential:
     urgency: FloatArray
     """``u(q)`` per automaton state."""
 
+    @property
+    def offset(self) -> float:
+        """``C``: the largest ``d`` (a hopeless state's) plus both weights."""
+        return float(self.distance.max(initial=0.0)) + ENV_WEIGHT + TIME_WEIGHT
+
     def at(self, q: IntArray, env_distances: FloatArray, reach: float) -> FloatArray:
         """``Phi`` of each row: automaton state ``q[r]`` where proposition ``i`` is
         ``env_distances[r, i]`` away (``inf`` where it never holds, ``nan``: no distance; a row
@@ -111,7 +127,8 @@ class TaskPotential:
         known = np.asarray(env_distances, dtype=np.float64)
         advancing = self.advancing[q] if known.shape[1] else np.zeros(known.shape, np.bool_)
         near = self._near(advancing, known, reach)
-        phi: FloatArray = -(self.distance[q] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[q])
+        far = self.distance[q] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[q]
+        phi: FloatArray = self.offset - far
         return phi
 
     def table(self, env_distances: FloatArray, reach: float) -> FloatArray:
@@ -120,9 +137,8 @@ class TaskPotential:
         distance); rows are automaton states."""
         by_position = np.asarray(env_distances, dtype=np.float64).T  # (S, P)
         near = self._near(self.advancing[:, None, :], by_position[None, :, :], reach)  # (Q, S)
-        phi: FloatArray = -(
-            self.distance[:, None] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[:, None]
-        )
+        far = self.distance[:, None] + ENV_WEIGHT * near + TIME_WEIGHT * self.urgency[:, None]
+        phi: FloatArray = self.offset - far
         return phi
 
     @staticmethod
