@@ -313,8 +313,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def potential(self) -> float:
         """The task's shaping potential now (:mod:`mitlc.task.potential`; unscaled, 0 once the
         task is decided); needs ``potential`` set when the wrapper was made."""
-        here = self.distances()[None, :]
-        return float(self.potential_at(np.array([self._state.q]), here)[0])
+        return self._potential_here(self.distances())
+
+    def _potential_here(self, here: FloatArray) -> float:
+        """:meth:`potential` at the distances ``here`` of the position now."""
+        return float(self.potential_at(np.array([self._state.q]), here[None, :])[0])
 
     @property
     def reach(self) -> float:
@@ -454,8 +457,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._discrete:
             info["action_mask"] = self.masks_of(q).copy()
         if self._shaping is not None:
-            info["potential"] = self.potential()
-            info["distances"] = self.distances()
+            info["distances"] = here = self.distances()
+            info["potential"] = self._potential_here(here)
             info["distances_left"] = self._distances_of(left)
         return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
 
@@ -577,6 +580,6 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._discrete:
             info["action_mask"] = self.masks_of(state.q).copy()
         if self._shaping is not None:
-            info["potential"] = self.potential()
-            info["distances"] = info["distances_left"] = self.distances()
+            info["distances"] = info["distances_left"] = here = self.distances()
+            info["potential"] = self._potential_here(here)
         return info

@@ -60,7 +60,6 @@ from mitlc.learn.learners.crm_env import (
 )
 from mitlc.learn.rundir.files import RunError
 from mitlc.task import MonitorState
-from mitlc.task.potential import shaped
 from mitlc.worlds.model import BoolArray, IntArray
 
 Flat = npt.NDArray[np.float32]
@@ -215,9 +214,8 @@ class CounterfactualReplay(ReplayBuffer):
         if self.shaping:
             left, reached = (np.array([info[key] for info in infos], dtype=np.float64)
                              for key in ("distances_left", "distances"))  # fmt: skip
-            left_phi, reached_phi = crm.potentials(rows, left, reached)
-            k, gammas = self.shaping, np.full(len(reward), self.gamma)
-            reward = shaped(reward, gammas, k * left_phi, k * reached_phi)
+            gammas = np.full(len(reward), self.gamma)
+            reward = crm.shaped_reward(rows, gammas, left, reached, self.shaping)
         steps = np.array([info.get("step", 0) for info in infos], dtype=np.int64)[i]
         truncated = ~rows.terminated & (steps >= crm.horizon)
         flat = np.asarray(obs).reshape(self.n_envs, -1)

@@ -57,6 +57,7 @@ from gymnasium import spaces
 from mitlc.automata.digital import DigitalAutomaton
 from mitlc.errors import MitlcError
 from mitlc.task import PENDING, TaskMonitor
+from mitlc.task.potential import shaped
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
 LIMIT = 64
@@ -225,6 +226,19 @@ class EnvCounterfactuals:
         before = self.potential(rows.q, np.asarray(left, dtype=np.float64)[i])
         after = self.potential(rows.next_q, np.asarray(reached, dtype=np.float64)[i])
         return before, after
+
+    def shaped_reward(
+        self,
+        rows: Rows,
+        gammas: FloatArray,
+        left: FloatArray,
+        reached: FloatArray,
+        scale: float,
+    ) -> FloatArray:
+        """The counterfactuals' rewards shaped at discounts ``gammas`` with ``scale`` times the
+        wrapper's potentials (:meth:`potentials`): what every learner stores."""
+        before, after = self.potentials(rows, left, reached)
+        return shaped(rows.reward, gammas, scale * before, scale * after)
 
     def valid(self, q: IntArray) -> BoolArray:
         """The wrapper's valid actions in each automaton state ``q`` (its action masks)."""

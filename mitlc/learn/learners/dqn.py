@@ -63,7 +63,6 @@ from mitlc.learn.learners.nets import (
     tensors,
     torch_seed,
 )
-from mitlc.task.potential import shaped
 from mitlc.worlds.model import BoolArray, IntArray
 
 
@@ -261,9 +260,8 @@ class DQNLearner(Learner):
         if isinstance(self.shaping, EnvShaping):
             if step.distances is None or step.distances_left is None:
                 raise ValueError("shaped counterfactuals need the distances the episodes report")
-            before, after = crm.potentials(rows, step.distances_left, step.distances)
-            scale = self.shaping.scale
-            reward = shaped(reward, gammas, scale * before, scale * after)
+            reward = crm.shaped_reward(rows, gammas, step.distances_left, step.distances,
+                                       self.shaping.scale)  # fmt: skip
         return {
             "observation": entries["observation"][i],
             "automaton": rows.q,
