@@ -20,8 +20,14 @@ the frontier), timed against issue 24's 120 s.
 Every run goes through the command line into its own run directory under ``--out`` (``mitlc
 train --no-eval``, timed: the wall time is the ``train`` process's, start-up included; then
 ``mitlc eval RUN --json --episodes N``, greedy success with its 95% interval). A run whose
-directory already has ``run/summary.json`` and ``result.json`` is not run again, so an
-interrupted bench goes on where it stopped. Printed: a Markdown table per task and arm (mean
+directory already has ``run/summary.json`` and ``result.json`` is not run again, and one
+interrupted in training (SIGINT or SIGTERM: every ``mitlc train`` saves a checkpoint and the
+bench starts nothing new) goes on from its latest checkpoint (``mitlc train --resume``), so a
+bench run over several sittings loses at most the steps since each run's last checkpoint. A
+resumed SB3 off-policy run refills its replay memory (it is not checkpointed), and its wall
+time is the sum of its train processes that ended, signalled ones included (``DIR/wall.json``;
+a process killed outright is not counted). Runs with a wall-time target (:data:`TARGETS`) run
+first and alone, whatever ``--jobs`` says. Printed: a Markdown table per task and arm (mean
 greedy success over the seeds, each seed's with its interval, env steps from ``summary.json``,
 mean wall time), rliable's IQM of the success across the tasks per arm with its 95%
 stratified bootstrap interval (:func:`mitlc.sweep.report.interval_estimates`), the
@@ -41,6 +47,7 @@ import argparse
 import dataclasses
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -170,12 +177,33 @@ class Run:
 
 
 def plan(tasks: list[Task], seeds: list[int], out: Path) -> list[Run]:
+    """Every (task, arm, seed) of ``tasks`` in their order."""
     runs = []
     for task in tasks:
         for arm in (*ARMS, *task.extra_arms):
             for seed in seeds:
                 runs.append(Run(task, arm, seed, out / task.name / arm.name / f"s{seed}"))
     return runs
+
+
+def timed(run: Run) -> bool:
+    """Whether a target of :data:`TARGETS` holds ``run``'s wall time (it must run alone)."""
+    return any(t.seconds is not None and (t.task, t.arm) == (run.task.name, run.arm.name)
+               for t in TARGETS)  # fmt: skip
+
+
+def stop_on_signals() -> None:
+    """SIGINT and SIGTERM set :data:`STOP` (the ``mitlc train`` processes, in this process
+    group, get the same signal and save their checkpoints)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        if not STOP.is_set():
+            say(f"envs bench: {signal.Signals(signum).name}: the runs going on save their "
+                "checkpoints; nothing new starts (run it again to go on)")  # fmt: skip
+        STOP.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
 
 
 def command(run: Run, scale: float, device: str | None, crm: bool) -> list[str]:
@@ -198,37 +226,53 @@ def command(run: Run, scale: float, device: str | None, crm: bool) -> list[str]:
 
 
 def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]:
-    """Train ``run`` afresh (a run directory left without ``summary.json`` is removed); the
-    train process's seconds and its command. A ``crm`` the learner refuses is dropped."""
+    """Train ``run``: from its latest checkpoint where an earlier sitting left one (see the
+    module docstring), else afresh; the seconds of all its train processes and its command. A
+    ``crm`` the learner refuses is dropped (the run starts again without it)."""
     import shutil
 
-    crm = run.arm.crm
+    crm = not any(note.startswith("crm refused") for note in run.notes) and run.arm.crm
+    walls = run.directory / "wall.json"
     while True:
-        shutil.rmtree(run.directory / "run", ignore_errors=True)
+        resume = (run.directory / "run" / "checkpoint.json").is_file()
+        if not resume:
+            shutil.rmtree(run.directory / "run", ignore_errors=True)
+            walls.unlink(missing_ok=True)
         run.directory.mkdir(parents=True, exist_ok=True)
         line = command(run, scale, device, crm)
+        before = json.loads(walls.read_text(encoding="utf-8")) if walls.is_file() else []
         start = time.perf_counter()
-        done = subprocess.run(line, cwd=ROOT, capture_output=True, text=True)
+        done = subprocess.run([*line, *(["--resume"] if resume else [])], cwd=ROOT,
+                              capture_output=True, text=True)  # fmt: skip
         seconds = time.perf_counter() - start
-        log = f"$ {' '.join(line)}\n{done.stdout}{done.stderr}"
-        (run.directory / "train.log").write_text(log, encoding="utf-8")
+        walls.write_text(json.dumps([*before, round(seconds, 3)]), encoding="utf-8")
+        log = f"$ {' '.join(line)}{' --resume' if resume else ''}\n{done.stdout}{done.stderr}"
+        with (run.directory / "train.log").open("a", encoding="utf-8") as out:
+            out.write(log)
         last = done.stderr.strip().splitlines()[-1] if done.stderr.strip() else ""
         refused = done.returncode != 0 and "Traceback" not in done.stderr and "crm" in last
         if refused and crm:  # a setting refused (mitlc's one-line error), not a crash
-            reason = last
-            run.notes.append(f"crm refused, run without it ({reason})")
+            run.notes.append(f"crm refused, run without it ({last})")
+            (run.directory / "notes.json").write_text(json.dumps(run.notes), encoding="utf-8")
             crm = False
+            shutil.rmtree(run.directory / "run", ignore_errors=True)
             continue
+        if done.returncode == 130 or (STOP.is_set() and done.returncode != 0):
+            raise Interrupted(f"stopped after {seconds:.0f} s; it goes on from its checkpoint")
         if done.returncode != 0:
             tail = "\n".join(done.stderr.strip().splitlines()[-5:])
             raise RuntimeError(f"mitlc train failed (exit {done.returncode}):\n{tail}")
-        return seconds, line
+        if len(before) > 0:
+            run.notes.append(f"resumed {len(before)} time(s); wall s summed over the processes")
+        return sum(before) + seconds, line
 
 
 def evaluate(run: Run, episodes: int) -> dict[str, Any]:
     """``mitlc eval RUN --json --episodes N``."""
     line = [*MITLC, "eval", str(run.directory / "run"), "--json", "--episodes", str(episodes)]
     done = subprocess.run(line, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0 and STOP.is_set():
+        raise Interrupted("stopped in its evaluation; it is evaluated again next time")
     if done.returncode != 0:
         tail = "\n".join(done.stderr.strip().splitlines()[-5:])
         raise RuntimeError(f"mitlc eval failed (exit {done.returncode}):\n{tail}")
@@ -247,6 +291,13 @@ def finished(run: Run) -> dict[str, Any] | None:
 
 _say = threading.Lock()
 
+STOP = threading.Event()
+"""Set on SIGINT or SIGTERM: runs not yet started are left for the next sitting."""
+
+
+class Interrupted(Exception):
+    """A ``mitlc train`` stopped by a signal (its checkpoint saved): the run goes on next time."""
+
 
 def say(text: str) -> None:
     with _say:
@@ -256,6 +307,8 @@ def say(text: str) -> None:
 def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
     """Train and evaluate ``run`` unless it is done; its record in ``run.result``."""
     where = f"[{index}/{total}] {run.label}"
+    if STOP.is_set():
+        return
     done = finished(run)
     if done is not None:
         run.result = done
@@ -269,11 +322,17 @@ def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
             trained = json.loads(timed.read_text(encoding="utf-8"))  # trained, not evaluated
             run.notes = list(trained["notes"])
         else:
+            notes = run.directory / "notes.json"
+            if notes.is_file():
+                run.notes = list(json.loads(notes.read_text(encoding="utf-8")))
             seconds, line = train(run, args.steps_scale, args.device)
             trained = {"wall_s": seconds, "command": line, "notes": run.notes}
             timed.write_text(json.dumps(trained, indent=2), encoding="utf-8")
         summary = json.loads((run.directory / "run" / "summary.json").read_text())
         report = evaluate(run, episodes)
+    except Interrupted as err:
+        say(f"{where}: {err}")
+        return
     except RuntimeError as err:
         say(f"{where}: FAILED ({err}); log in {run.directory / 'train.log'}")
         return
@@ -412,13 +471,22 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     if args.jobs > 1 and "OMP_NUM_THREADS" not in os.environ:  # torch's threads, shared out
         os.environ["OMP_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // args.jobs))
-    tasks = [task for task in TASKS if task.name in chosen]
+    tasks = [next(task for task in TASKS if task.name == name) for name in chosen]
     runs = plan(tasks, seeds, out)
     say(f"envs bench: {len(runs)} runs under {out}")
+    stop_on_signals()
+    order = [*filter(timed, runs), *(run for run in runs if not timed(run))]
+    number = {id(run): i + 1 for i, run in enumerate(order)}
+    for run in filter(timed, runs):  # alone: their wall time is a target
+        execute(run, number[id(run)], len(runs), args)
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(execute, run, i + 1, len(runs), args) for i, run in enumerate(runs)]
+        rest = [run for run in order if not timed(run)]
+        futures = [pool.submit(execute, run, number[id(run)], len(runs), args) for run in rest]
         for future in futures:
             future.result()
+    if STOP.is_set():
+        say("envs bench: stopped; run the same command again to go on")
+        sys.exit(130)
 
     table = per_arm(runs)
     scale = "" if args.steps_scale == 1 else f", budgets x {args.steps_scale:g}"
