@@ -89,6 +89,7 @@ from mitlc.gym.arguments import (
     task_of,
     task_rewards,
 )
+from mitlc.gym.guide import TaskGuide
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
 from mitlc.labels import (
     LabelDeclarationError,
@@ -98,7 +99,6 @@ from mitlc.labels import (
     as_labels,
     letter_reader,
 )
-from mitlc.labels.distance import distances
 from mitlc.labels.function import call_checked
 from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
 from mitlc.labels.values import NO_MOMENT, Moment
@@ -205,9 +205,12 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._letter, self._done, self._ended = 0, True, False
         self._env_obs: Any = None
         self._env_info: dict[str, Any] = {}
-        self._shaping = shaping_of(automaton, potential)
-        self._reach = float(potential) if potential else 0.0
-        self._distances: list[float | None] = []
+        shaping = shaping_of(automaton, potential)
+        self._guide = (
+            None
+            if shaping is None
+            else TaskGuide(shaping, automaton.propositions, float(potential or 0.0))
+        )
 
     def _warn_cut(self, what: str) -> None:
         if not self._cut_warned:
@@ -323,34 +326,29 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
     def reach(self) -> float:
         """The distance that scales the potential's pull (``potential=REACH``; where it was 0,
         the largest distance at the first reset, and 0 before it)."""
-        return self._reach
+        return self._guide.reach if self._guide is not None else 0.0
 
     @property
     def has_potential(self) -> bool:
         """Whether the wrapper was made with ``potential`` (and reports it)."""
-        return self._shaping is not None
+        return self._guide is not None
 
     def potential_at(self, q: IntArray, distances: FloatArray) -> FloatArray:
         """The shaping potential (unscaled) of automaton state ``q[r]`` at a position whose
         distances to the propositions are ``distances[r]`` (as :meth:`distances` gives them):
         what :meth:`potential` reports, for any task state (0 where ``q[r]`` is decided)."""
-        if self._shaping is None:
+        if self._guide is None:
             raise TaskWrapperError("potential: make the wrapper with potential=REACH")
         q = np.asarray(q, dtype=np.int64)
-        phi = self._shaping.at(q, distances, self._reach or 1.0)
-        result: FloatArray = np.where(self.monitor.verdicts(q) == PENDING, phi, 0.0)
-        return result
+        return self._guide.at(q, distances, self.monitor.verdicts(q) == PENDING)
 
     def distances(self) -> FloatArray:
         """How far the position now is from each of the automaton's propositions (``nan``: no
         distance), as the potential reads it; ``info["distances"]`` holds it after every step
         and ``info["distances_left"]`` that of the position the step left."""
-        return self._distances_of(self._distances)
-
-    def _distances_of(self, found: list[float | None]) -> FloatArray:
-        if not found:
+        if self._guide is None:
             return np.full(len(self.automaton.propositions), np.nan)
-        return np.array([np.nan if d is None else d for d in found], dtype=np.float64)
+        return self._guide.array(self._guide.now)
 
     def state_dict(self) -> dict[str, Any]:
         """The run's state for a checkpoint: the task monitor's, the letter to read next,
@@ -367,8 +365,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             "env_obs": self._env_obs,
             "env_info": data_only(self._env_info),
             "held": self.held,
-            "reach": self._reach,
-            "distances": list(self._distances),
+            **(self._guide.state_dict() if self._guide is not None else {}),
             "env": own,
         }
 
@@ -379,8 +376,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._ended = bool(saved.get("env_ended", False))
         self._env_obs, self._env_info = saved["env_obs"], dict(saved.get("env_info", {}))
         self.held = int(saved.get("held", 0))
-        self._reach = float(saved.get("reach", self._reach))
-        self._distances = [None if d is None else float(d) for d in saved.get("distances", [])]
+        if self._guide is not None:
+            self._guide.load_state_dict(saved)
         inner = self.env.unwrapped
         if hasattr(inner, "load_state_dict"):
             inner.load_state_dict(saved["env"])
@@ -412,7 +409,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                     return self._jump(a - self._env_actions)
                 raise ValueError(f"action {action!r} is not in {self.action_space}")
         monitor, read, env_reward = self.monitor, self._letter, 0.0
-        left = self._distances
+        guide = self._guide
+        left = guide.now if guide is not None else []
         state, marks, new, reward, verdict, decided, success = monitor.step(self._state, read)
         if self._ended:  # the world stays on its last position: the env is not stepped
             obs, env_info = self._env_obs, self._env_info
@@ -435,31 +433,16 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                 marks |= more
                 new += fresh
         self._state = state
-        q, frontier, rounds, steps = state
+        q, frontier, _, steps = state
         if q >= self._checked_below:
             self._check_capacity(q)
         terminated = bool(decided)
         truncated = not terminated and steps >= self.horizon
         self._done = terminated or truncated
-        lists = self._mark_lists
-        info = env_info.copy()
-        info["env_ended"] = self._ended
-        info["verdict"] = VERDICT_NAMES[verdict]
-        info["marks"] = [*lists[marks]] if marks < len(lists) else [*self._marks_of(marks)]
-        info["rounds"] = rounds
-        info["success"] = info["is_success"] = success
-        info["step"] = steps
-        info["invalid_action"] = False
-        info["automaton_state"] = q
-        info["accepting"] = new > 0
-        info["letter"] = read
+        info = self._info(env_info, state, verdict, marks, success, False, new > 0, read)
         info["env_reward"] = env_reward
-        if self._discrete:
-            info["action_mask"] = self.masks_of(q).copy()
-        if self._shaping is not None:
-            info["distances"] = here = self.distances()
-            info["potential"] = self._potential_here(here)
-            info["distances_left"] = self._distances_of(left)
+        if guide is not None:
+            info["distances_left"] = guide.array(left)
         return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -498,23 +481,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         else:
             self._letter = self._read(obs, info)
         self.held |= self._letter
-        if self._shaping is not None:
-            self._distances = self._measure(obs, info, moment)
-
-    def _measure(self, obs: Any, info: dict[str, Any], moment: Moment) -> list[float | None]:
-        """How far the position is from each proposition (:mod:`mitlc.labels.distance`); the
-        first sets the reach, where none was given."""
-        props = self.automaton.propositions
-        if isinstance(self.labels, Labeller):
-            found = distances(self.labels, props, obs, info, moment)
-        elif hasattr(self.labels, "distances"):  # labels read elsewhere than obs (a plane's)
-            found = self.labels.distances(props, obs, info, moment)
-        else:
-            return []
-        if not self._reach:
-            known = [d for d in found if d is not None and d > 0.0]
-            self._reach = max(known, default=1.0)
-        return found
+        if self._guide is not None:
+            self._guide.measure(self.labels, obs, info, moment)
 
     def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
         """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``
@@ -562,24 +530,31 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         success: bool,
         invalid: bool,
         accepting: bool,
+        letter: int = -1,
     ) -> dict[str, Any]:
-        """The env's ``info`` with the task's entries (those of :meth:`step`, spelled out there
-        for speed: keep the two alike)."""
-        info = env_info.copy()
-        info["env_ended"] = self._ended
-        info["verdict"] = VERDICT_NAMES[verdict]
-        info["marks"] = [*self._marks_of(marks)]
-        info["rounds"] = state.rounds
-        info["success"] = info["is_success"] = success
-        info["step"] = state.steps
-        info["invalid_action"] = invalid
-        info["automaton_state"] = state.q
-        info["accepting"] = accepting
-        info["letter"] = -1
-        info["env_reward"] = 0.0
+        """The env's ``info`` with the task's entries (module docstring), for a step that read
+        ``letter`` (-1: none) and did not step the env (:meth:`step` sets ``env_reward`` and
+        ``distances_left`` where it did)."""
+        q, _, rounds, steps = state
+        lists = self._mark_lists
+        info = {
+            **env_info,
+            "env_ended": self._ended,
+            "verdict": VERDICT_NAMES[verdict],
+            "marks": [*lists[marks]] if marks < len(lists) else [*self._marks_of(marks)],
+            "rounds": rounds,
+            "success": success,
+            "is_success": success,
+            "step": steps,
+            "invalid_action": invalid,
+            "automaton_state": q,
+            "accepting": accepting,
+            "letter": letter,
+            "env_reward": 0.0,
+        }
         if self._discrete:
-            info["action_mask"] = self.masks_of(state.q).copy()
-        if self._shaping is not None:
+            info["action_mask"] = self.masks_of(q).copy()
+        if self._guide is not None:
             info["distances"] = info["distances_left"] = here = self.distances()
             info["potential"] = self._potential_here(here)
         return info
