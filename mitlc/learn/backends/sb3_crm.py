@@ -64,6 +64,8 @@ from mitlc.worlds.model import BoolArray, IntArray
 
 Flat = npt.NDArray[np.float32]
 FIELDS = ("obs", "next_obs", "action", "reward", "done", "timeout")
+DENSE = 1 << 20
+"""The most task states ``(q, frontier)`` that :class:`FlatTask` indexes densely."""
 
 
 class FlatTask:
@@ -80,6 +82,12 @@ class FlatTask:
         self._reference = space.sample()
         """An observation of the env, whose part :meth:`observe` does not keep."""
         self._parts: dict[tuple[int, int], Flat] = {}
+        self._frontiers = 1 << view.num_sets
+        dense = view.num_q * self._frontiers <= DENSE
+        self._index = np.full((view.num_q, self._frontiers) if dense else (0, 0), -1)
+        """Where :attr:`_table` holds the part of ``(q, frontier)`` (-1: not yet made)."""
+        width = spaces.flatdim(view.space) - view.env_dim
+        self._table = np.zeros((0, width), dtype=np.float32)
 
     @staticmethod
     def of(env: Any) -> FlatTask:
@@ -109,9 +117,25 @@ class FlatTask:
         """Each row of ``flat`` with its task part that of ``(q[r], frontier[r])``."""
         out = np.array(flat, dtype=np.float32, copy=True)
         dim = self.view.env_dim
-        for r, (qr, fr) in enumerate(zip(q.tolist(), frontier.tolist(), strict=True)):
-            out[r, dim:] = self.part(qr, fr)
+        if not self._index.size:  # too many task states for a dense index
+            for r, (qr, fr) in enumerate(zip(q.tolist(), frontier.tolist(), strict=True)):
+                out[r, dim:] = self.part(qr, fr)
+            return out
+        where = self._index[q, frontier]
+        missing = where < 0
+        if missing.any():
+            self._add_parts(q[missing], frontier[missing])
+            where = self._index[q, frontier]
+        out[:, dim:] = self._table[where]
         return out
+
+    def _add_parts(self, q: IntArray, frontier: IntArray) -> None:
+        """Put the parts of the task states ``(q[r], frontier[r])`` in the dense table."""
+        new = sorted({(int(a), int(b)) for a, b in zip(q, frontier, strict=True)})
+        first = len(self._table)
+        self._table = np.concatenate([self._table, np.stack([self.part(a, b) for a, b in new])])
+        for k, (a, b) in enumerate(new):
+            self._index[a, b] = first + k
 
 
 class CounterfactualReplay(ReplayBuffer):
@@ -168,13 +192,32 @@ class CounterfactualReplay(ReplayBuffer):
         self.made += len(made["reward"])
         queue = self._queue
         self._queue = {k: np.concatenate([queue[k], made[k]]) for k in FIELDS} if queue else made
+        whole = len(self._queue["reward"]) // self.n_envs * self.n_envs
+        if whole:
+            self.store_rows({k: v[:whole] for k, v in self._queue.items()})
+            self._queue = {k: v[whole:] for k, v in self._queue.items()}
+
+    def store_rows(self, rows: dict[str, npt.NDArray[Any]]) -> None:
+        """Store counterfactual transitions (the fields of :data:`FIELDS`, a whole number of
+        rows of ``n_envs``) at once, as as many calls of SB3's ``add`` would, one row each."""
         n = self.n_envs
-        while len(self._queue["reward"]) >= n:
-            row = {k: v[:n] for k, v in self._queue.items()}
-            self._queue = {k: v[n:] for k, v in self._queue.items()}
-            truncated = [{"TimeLimit.truncated": bool(t)} for t in row["timeout"]]
-            self._store(row["obs"], row["next_obs"], row["action"], row["reward"], row["done"],
-                        truncated, counterfactual=True)  # fmt: skip
+        count = len(rows["reward"]) // n
+        keep = min(count, self.buffer_size)  # a block longer than the memory: its last rows
+        at = (self.pos + count - keep + np.arange(keep)) % self.buffer_size
+
+        def block(key: str, *shape: int) -> npt.NDArray[Any]:
+            return np.asarray(rows[key]).reshape(count, n, *shape)[count - keep :]
+
+        self.observations[at] = block("obs", *self.obs_shape)
+        self.next_observations[at] = block("next_obs", *self.obs_shape)
+        self.actions[at] = block("action", self.action_dim)
+        self.rewards[at] = block("reward")
+        self.dones[at] = block("done")
+        if self.handle_timeout_termination:
+            self.timeouts[at] = block("timeout")
+        self.counterfactual[at] = True
+        self.full = self.full or self.pos + count >= self.buffer_size
+        self.pos = (self.pos + count) % self.buffer_size
 
     def _store(
         self,

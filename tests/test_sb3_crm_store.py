@@ -1,0 +1,88 @@
+"""The counterfactual replay's bulk paths against their one-by-one references: a block of rows
+stored at once (:meth:`CounterfactualReplay.store_rows`) is what SB3's own ``add`` stores row
+by row, wrapping around the memory; the dense task-part table of :class:`FlatTask` gives what
+the part of each task state built one at a time gives."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from mitlc.gym import TaskWrapper
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3.common.buffers import ReplayBuffer  # noqa: E402
+
+from mitlc.learn.backends import sb3_crm  # noqa: E402
+from mitlc.learn.backends.sb3_crm import CounterfactualReplay, FlatTask  # noqa: E402
+
+LABELS = {"up": {"box": {"index": [0], "low": [0.9], "high": [1.0]}},
+          "left": {"box": {"index": [1], "low": [0.5], "high": [1.0]}}}  # fmt: skip
+
+
+def pendulum_task(task_obs: str = "state") -> FlatTask:
+    env = TaskWrapper(gym.make("Pendulum-v1"), "F[0,6] up & G[0,9] (left -> F[0,3] up)",
+                      LABELS, horizon=12, flatten=True, task_obs=task_obs)  # type: ignore[arg-type]  # fmt: skip
+    return FlatTask.of(env)
+
+
+def random_rows(rng: np.random.Generator, count: int, dim: int) -> dict[str, Any]:
+    return {
+        "obs": rng.normal(size=(count, dim)).astype(np.float32),
+        "next_obs": rng.normal(size=(count, dim)).astype(np.float32),
+        "action": rng.uniform(-2, 2, size=(count, 1)).astype(np.float32),
+        "reward": rng.normal(size=count).astype(np.float32),
+        "done": (rng.random(count) < 0.3).astype(np.float32),
+        "timeout": rng.random(count) < 0.2,
+    }
+
+
+@pytest.mark.parametrize("n_envs", [1, 2, 3])
+def test_a_block_of_rows_is_stored_as_sb3_stores_them_one_at_a_time(n_envs: int) -> None:
+    """Blocks of 0 to 3 memories' worth of rows, in turn: the arrays, ``pos`` and ``full`` equal
+    those of SB3's ``ReplayBuffer`` fed the same rows through its ``add``."""
+    task = pendulum_task()
+    space = task.view.space
+    action = gym.spaces.Box(-2.0, 2.0, (1,), np.float32)
+    size = 7
+    memory = CounterfactualReplay(size, space, action, "cpu", n_envs, task=task)
+    reference = ReplayBuffer(size, space, action, "cpu", n_envs)
+    rng = np.random.default_rng(3)
+    for rows_count in (0, 2, 5, 1, 9, 23, 4):
+        rows = random_rows(rng, rows_count * n_envs, space.shape[0])
+        memory.store_rows(rows)
+        for r in range(rows_count):
+            part = {k: v[r * n_envs : (r + 1) * n_envs] for k, v in rows.items()}
+            infos = [{"TimeLimit.truncated": bool(t)} for t in part["timeout"]]
+            reference.add(part["obs"], part["next_obs"], part["action"], part["reward"],
+                          part["done"], infos)  # fmt: skip
+        assert (memory.pos, memory.full) == (reference.pos, reference.full)
+        for name in ("observations", "next_observations", "actions", "rewards", "dones",
+                     "timeouts"):  # fmt: skip
+            np.testing.assert_array_equal(getattr(memory, name), getattr(reference, name))
+    assert memory.counterfactual.all() and memory.full
+
+
+@pytest.mark.parametrize("task_obs", ["state", "clocks"])
+def test_the_dense_task_parts_are_the_parts_made_one_by_one(
+    task_obs: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``observe`` through the dense table (filled as task states turn up) equals the loop over
+    ``part`` that a task too large for the table takes, on random rows and task states."""
+    dense = pendulum_task(task_obs)
+    monkeypatch.setattr(sb3_crm, "DENSE", 0)
+    looped = pendulum_task(task_obs)
+    assert dense._index.size and not looped._index.size
+    rng = np.random.default_rng(0)
+    num_q, frontiers = dense.view.num_q, 1 << dense.view.num_sets
+    for count in (1, 5, 40, 40):
+        flat = rng.normal(size=(count, dense.view.space.shape[0])).astype(np.float32)
+        q = rng.integers(num_q, size=count)
+        frontier = rng.integers(frontiers, size=count)
+        got = dense.observe(flat, q, frontier)
+        np.testing.assert_array_equal(got, looped.observe(flat, q, frontier))
+        np.testing.assert_array_equal(got[:, : dense.view.env_dim], flat[:, : dense.view.env_dim])
