@@ -15,10 +15,10 @@ from mitlc.gym import TaskWrapper
 
 pytest.importorskip("stable_baselines3")
 
-from stable_baselines3.common.buffers import ReplayBuffer  # noqa: E402
+from stable_baselines3.common.buffers import ReplayBuffer
 
-from mitlc.learn.backends import sb3_crm  # noqa: E402
-from mitlc.learn.backends.sb3_crm import CounterfactualReplay, FlatTask  # noqa: E402
+from mitlc.learn.backends import sb3_crm
+from mitlc.learn.backends.sb3_crm import CounterfactualReplay, FlatTask
 
 LABELS = {"up": {"box": {"index": [0], "low": [0.9], "high": [1.0]}},
           "left": {"box": {"index": [1], "low": [0.5], "high": [1.0]}}}  # fmt: skip
