@@ -53,7 +53,7 @@ def test_a_block_of_rows_is_stored_as_sb3_stores_them_one_at_a_time(n_envs: int)
     reference = ReplayBuffer(size, space, action, "cpu", n_envs)
     rng = np.random.default_rng(3)
     for rows_count in (0, 2, 5, 1, 9, 23, 4):
-        rows = random_rows(rng, rows_count * n_envs, space.shape[0])
+        rows = random_rows(rng, rows_count * n_envs, gym.spaces.flatdim(space))
         memory.store_rows(rows)
         for r in range(rows_count):
             part = {k: v[r * n_envs : (r + 1) * n_envs] for k, v in rows.items()}
@@ -80,7 +80,7 @@ def test_the_dense_task_parts_are_the_parts_made_one_by_one(
     rng = np.random.default_rng(0)
     num_q, frontiers = dense.view.num_q, 1 << dense.view.num_sets
     for count in (1, 5, 40, 40):
-        flat = rng.normal(size=(count, dense.view.space.shape[0])).astype(np.float32)
+        flat = rng.normal(size=(count, gym.spaces.flatdim(dense.view.space))).astype(np.float32)
         q = rng.integers(num_q, size=count)
         frontier = rng.integers(frontiers, size=count)
         got = dense.observe(flat, q, frontier)
