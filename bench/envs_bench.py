@@ -321,15 +321,21 @@ def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
     episodes = args.episodes if args.episodes is not None else run.task.eval_episodes
     say(f"{where}: start ({run.arm.algo or run.task.algo})")
     try:
-        timed = run.directory / "train.json"
+        timed, notes = run.directory / "train.json", run.directory / "notes.json"
+        if notes.is_file():
+            run.notes = list(json.loads(notes.read_text(encoding="utf-8")))
         if (run.directory / "run" / "summary.json").is_file() and timed.is_file():
             trained = json.loads(timed.read_text(encoding="utf-8"))  # trained, not evaluated
             run.notes = list(trained["notes"])
         else:
-            notes = run.directory / "notes.json"
-            if notes.is_file():
-                run.notes = list(json.loads(notes.read_text(encoding="utf-8")))
-            seconds, line = train(run, args.steps_scale, args.device)
+            ended = run.directory / "run" / "summary.json"
+            if ended.is_file():  # trained, but the bench stopped before it wrote train.json
+                crm = run.arm.crm and not any(n.startswith("crm refused") for n in run.notes)
+                line = command(run, args.steps_scale, args.device, crm)
+                seconds = float(json.loads(ended.read_text(encoding="utf-8"))["seconds"])
+                run.notes.append("wall s: the run's own training seconds (its end not timed)")
+            else:
+                seconds, line = train(run, args.steps_scale, args.device)
             trained = {"wall_s": seconds, "command": line, "notes": run.notes}
             timed.write_text(json.dumps(trained, indent=2), encoding="utf-8")
         summary = json.loads((run.directory / "run" / "summary.json").read_text())
