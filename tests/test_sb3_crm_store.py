@@ -86,3 +86,40 @@ def test_the_dense_task_parts_are_the_parts_made_one_by_one(
         got = dense.observe(flat, q, frontier)
         np.testing.assert_array_equal(got, looped.observe(flat, q, frontier))
         np.testing.assert_array_equal(got[:, : dense.view.env_dim], flat[:, : dense.view.env_dim])
+
+
+@pytest.mark.parametrize("limit", [1, 3])
+def test_sb3_crm_limit_bounds_the_counterfactuals_of_a_step(tmp_path: Any, limit: int) -> None:
+    """``sb3.crm_limit``: SAC on Pendulum (whose task has more pending states than the limit)
+    adds at most ``limit`` counterfactuals an env step, and exactly that many on the steps that
+    give any (it samples when there are more)."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
+    from mitlc.learn.config import resolve
+    from mitlc.learn.setting import prepare
+    from tests.test_crm_env import PENDULUM, TINY
+
+    path = tmp_path / "pendulum.yaml"
+    path.write_text(PENDULUM)
+    settings = {"algo": "sb3-sac", **TINY, "sb3.crm_limit": limit}
+    config = resolve({}, settings, discount=0.95, pomdp=False)
+    setting = prepare(path, config)
+    venv: Any = make_vec_env(lambda: wrapped_env(setting), 1, seed=0, vec_env_cls=DummyVecEnv)
+    cls, policy = algorithm("sb3-sac")
+    model = cls(policy, venv, seed=0, device="cpu", **model_settings(config, venv.envs[0]))
+    memory = model.replay_buffer
+    assert isinstance(memory, CounterfactualReplay)
+    assert len(memory.task.counterfactuals.pair_q) > limit
+    made = []
+    add = memory.add
+
+    def counted(*args: Any, **kwargs: Any) -> None:
+        before = memory.made
+        add(*args, **kwargs)
+        made.append(memory.made - before)
+
+    memory.add = counted  # type: ignore[method-assign]
+    model.learn(120)
+    assert len(made) == 120 and set(made) <= {0, limit} and made.count(limit) > 100

@@ -258,6 +258,9 @@ TRAINING: dict[str, Bound] = {
     "sb3.exploration_fraction": Bound(0, 1, _UNIT_WHY),
     "sb3.exploration_final_eps": Bound(0, 1, _UNIT_WHY),
     "sb3.target_update_interval": Bound(1, BUDGET, _COUNTER_WHY),
+    "sb3.crm_limit": Bound(1, 4096, (
+        "transitions made and stored each env step: 4,096 a step fill SB3's largest memory "
+        "(1,000,000) in 245 steps")),
 }
 """Every numeric training setting by its path within ``training``."""
 

@@ -218,6 +218,11 @@ class SB3Config:
     crm: bool = False
     """DQN, SAC, TD3: counterfactual experience in the replay memory, every transition's over
     the task's other states (:mod:`mitlc.learn.backends.sb3_crm`), shaped as the run is."""
+    crm_limit: int = 64
+    """With ``crm``: the most counterfactual transitions one experienced step adds (a uniform
+    sample of the task states where there are more, :mod:`mitlc.learn.learners.crm_env`). The
+    gradient steps do not grow with them, so more dilute what the agent lived (on PointMaze,
+    the more a step, the later the first success: ``docs/deadlines.md``)."""
 
 
 @dataclass(frozen=True, slots=True)

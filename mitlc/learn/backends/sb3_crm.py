@@ -53,6 +53,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from mitlc.gym.parts import TaskObservation
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.learners.crm_env import (
+    LIMIT,
     CounterfactualError,
     EnvCounterfactuals,
     Rows,
@@ -90,10 +91,10 @@ class FlatTask:
         self._table = np.zeros((0, width), dtype=np.float32)
 
     @staticmethod
-    def of(env: Any) -> FlatTask:
+    def of(env: Any, limit: int = LIMIT) -> FlatTask:
         """The task of the :class:`mitlc.gym.TaskWrapper` ``env`` is or wraps, made with
         ``flatten=True`` (its layout rebuilt from its own parts and checked against its
-        space)."""
+        space), giving at most ``limit`` counterfactuals a step (``sb3.crm_limit``)."""
         wrapper = task_wrapper(env)
         automaton = wrapper.automaton
         view = TaskObservation.of(wrapper.env.observation_space, "env", wrapper.num_q,
@@ -103,7 +104,7 @@ class FlatTask:
                 f"the wrapper's observation {wrapper.observation_space} is not the layout "
                 f"{view.space} of its parts"
             )
-        return FlatTask(EnvCounterfactuals.of(wrapper), view)
+        return FlatTask(EnvCounterfactuals.of(wrapper, limit), view)
 
     def part(self, q: int, frontier: int) -> Flat:
         """The task part of a flat observation in task state ``(q, frontier)``."""
@@ -303,7 +304,7 @@ def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
         raise RunError(f"sb3.crm: counterfactual experience goes into a replay memory: "
                        f"{', '.join(OFF_POLICY)}, not {config.algo}")  # fmt: skip
     try:
-        task = FlatTask.of(env)
+        task = FlatTask.of(env, config.sb3.crm_limit)
     except CounterfactualError as err:
         raise RunError(f"sb3.crm: {err}") from None
     kwargs = {"task": task, "seed": config.seed, "shaping": config.shaping,
