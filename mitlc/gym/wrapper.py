@@ -64,7 +64,10 @@ plumbing between the monitor and the environment:
   reward of the step, 0 where the env did not step) and, with a ``Discrete`` action space,
   ``action_mask`` (the
   valid actions now, :meth:`TaskWrapper.masks_of`; gymnasium's toy-text convention, so that a
-  vector env's ``final_info`` carries the mask of the state an episode ended in).
+  vector env's ``final_info`` carries the mask of the state an episode ended in). Made with
+  ``potential=REACH``: ``potential`` (the task's shaping potential now), ``distances`` and
+  ``distances_left`` (how far the positions reached and left are from each proposition;
+  :class:`mitlc.gym.guide.TaskGuide` keeps them).
 
 ``gymnasium.make("mitlc/Task-v0", env_id=..., env_kwargs=..., spec=..., labels=...,
 horizon=...)`` builds the inner env by id and wraps it.
