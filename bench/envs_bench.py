@@ -196,6 +196,12 @@ def timed(run: Run) -> bool:
                for t in TARGETS)  # fmt: skip
 
 
+def crm_on(run: Run) -> bool:
+    """Whether ``run`` asks for counterfactual experience: its arm's, unless the learner has
+    refused it (its notes say so)."""
+    return run.arm.crm and not any(note.startswith("crm refused") for note in run.notes)
+
+
 def stop_on_signals() -> None:
     """SIGINT and SIGTERM set :data:`STOP` (the ``mitlc train`` processes, in this process
     group, get the same signal and save their checkpoints)."""
@@ -235,7 +241,7 @@ def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]
     ``crm`` the learner refuses is dropped (the run starts again without it)."""
     import shutil
 
-    crm = not any(note.startswith("crm refused") for note in run.notes) and run.arm.crm
+    crm = crm_on(run)
     walls = run.directory / "wall.json"
     while True:
         resume = (run.directory / "run" / "checkpoint.json").is_file()
@@ -330,8 +336,7 @@ def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
         else:
             ended = run.directory / "run" / "summary.json"
             if ended.is_file():  # trained, but the bench stopped before it wrote train.json
-                crm = run.arm.crm and not any(n.startswith("crm refused") for n in run.notes)
-                line = command(run, args.steps_scale, args.device, crm)
+                line = command(run, args.steps_scale, args.device, crm_on(run))
                 seconds = float(json.loads(ended.read_text(encoding="utf-8"))["seconds"])
                 run.notes.append("wall s: the run's own training seconds (its end not timed)")
             else:
@@ -485,12 +490,12 @@ def main() -> None:
     runs = plan(tasks, seeds, out)
     say(f"envs bench: {len(runs)} runs under {out}")
     stop_on_signals()
-    order = [*filter(timed, runs), *(run for run in runs if not timed(run))]
-    number = {id(run): i + 1 for i, run in enumerate(order)}
-    for run in filter(timed, runs):  # alone: their wall time is a target
+    alone = [run for run in runs if timed(run)]  # their wall time is a target
+    rest = [run for run in runs if not timed(run)]
+    number = {id(run): i + 1 for i, run in enumerate([*alone, *rest])}
+    for run in alone:
         execute(run, number[id(run)], len(runs), args)
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        rest = [run for run in order if not timed(run)]
         futures = [pool.submit(execute, run, number[id(run)], len(runs), args) for run in rest]
         for future in futures:
             future.result()

@@ -539,12 +539,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         ``letter`` (-1: none) and did not step the env (:meth:`step` sets ``env_reward`` and
         ``distances_left`` where it did)."""
         q, _, rounds, steps = state
-        lists = self._mark_lists
         info = {
             **env_info,
             "env_ended": self._ended,
             "verdict": VERDICT_NAMES[verdict],
-            "marks": [*lists[marks]] if marks < len(lists) else [*self._marks_of(marks)],
+            "marks": [*self._marks_of(marks)],
             "rounds": rounds,
             "success": success,
             "is_success": success,

@@ -188,7 +188,8 @@ class CounterfactualReplay(ReplayBuffer):
         """Store SB3's transitions, then their counterfactuals (by whole rows of
         ``n_envs``)."""
         made = self._counterfactuals(obs, next_obs, action, infos)
-        self._store(obs, next_obs, action, reward, done, infos, counterfactual=False)
+        self.counterfactual[self.pos] = False  # the experienced row, stored as SB3 stores it
+        super().add(obs, next_obs, action, reward, done, infos)
         self._follow(np.asarray(done, dtype=np.bool_), infos)
         self.made += len(made["reward"])
         queue = self._queue
@@ -219,20 +220,6 @@ class CounterfactualReplay(ReplayBuffer):
         self.counterfactual[at] = True
         self.full = self.full or self.pos + count >= self.buffer_size
         self.pos = (self.pos + count) % self.buffer_size
-
-    def _store(
-        self,
-        obs: npt.NDArray[Any],
-        next_obs: npt.NDArray[Any],
-        action: npt.NDArray[Any],
-        reward: npt.NDArray[Any],
-        done: npt.NDArray[Any],
-        infos: list[dict[str, Any]],
-        *,
-        counterfactual: bool,
-    ) -> None:
-        self.counterfactual[self.pos] = counterfactual
-        super().add(obs, next_obs, action, reward, done, infos)
 
     def _counterfactuals(
         self,
