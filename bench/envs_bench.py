@@ -28,7 +28,7 @@ directory already has ``run/summary.json`` and ``result.json`` is not run again,
 interrupted in training (SIGINT or SIGTERM: every ``mitlc train`` saves a checkpoint and the
 bench starts nothing new) goes on from its latest checkpoint (``mitlc train --resume``), so a
 bench run over several sittings loses at most the steps since each run's last checkpoint. A
-resumed SB3 off-policy run refills its replay memory (it is not checkpointed), and its wall
+resumed SB3 off-policy run goes on with its replay memory (in the checkpoint), and its wall
 time is the sum of its train processes that ended, signalled ones included (``DIR/wall.json``;
 a process killed outright is not counted).
 

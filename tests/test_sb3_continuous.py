@@ -63,6 +63,8 @@ def same(a: Any, b: Any) -> bool:
     device)."""
     if isinstance(a, torch.Tensor):
         return isinstance(b, torch.Tensor) and torch.equal(a.cpu(), b.cpu())
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b)
     if isinstance(a, dict):
         return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
     if isinstance(a, list | tuple):
@@ -98,7 +100,7 @@ def test_each_trains_a_run_that_evaluates_and_acts_as_sb3_predicts(
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert rows[-1]["steps"] == 200 and rows[-1]["episodes"] >= 4
     model = checkpoint.load(out).state["model"]
-    assert set(model) == {"settings", "policy", "counters"} | PARTS[algo]
+    assert set(model) == {"settings", "policy", "counters", "replay"} | PARTS[algo]
     assert {key.partition(".")[0] for key in model["policy"]} == NETWORKS[algo]
     assert model["counters"]["num_timesteps"] == 200 and model["counters"]["n_updates"] > 0
     shown = runner.invoke(app, ["eval", str(out), "--episodes", "20", "--json"])
@@ -155,9 +157,11 @@ def test_resume_loads_the_checkpoint_and_continues_its_steps(
     assert loaded["counters"] == saved["counters"] and saved["counters"]["num_timesteps"] == 150
     state = checkpoint.load(out).state["model"]
     assert state["counters"]["num_timesteps"] == 260
-    # a gradient step a step past learning_starts (50), then past it again after the resume,
-    # as the replay memory refills: 100 before, 60 after, not 110
-    assert (saved["counters"]["n_updates"], state["counters"]["n_updates"]) == (100, 160)
+    # a gradient step a step past learning_starts (50), and every step after the resume: the
+    # replay memory was restored (its 150 rows), not refilled for 50 steps (that would be 160)
+    assert (saved["counters"]["n_updates"], state["counters"]["n_updates"]) == (100, 210)
+    assert saved["replay"]["kept"] and saved["replay"]["pos"] == 150
+    assert loaded["replay"]["pos"] == 150 and state["replay"]["pos"] == 260
     assert not all(torch.equal(state["policy"][k], v) for k, v in saved["policy"].items())
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     steps = [row["steps"] for row in rows]

@@ -35,8 +35,10 @@ off-policy algorithms is in :mod:`mitlc.learn.backends.sb3_offpolicy`.
   counters (``num_timesteps`` included, so the schedules go on where they were), on the run's
   device or another (``--device`` may change). It does not replay the run exactly: the envs
   restart with new episodes (seeded by the seed plus the steps), a PPO rollout in progress is
-  collected again, and **the replay memory of sb3-dqn, sb3-sac and sb3-td3 is not saved**: the
-  resumed run refills it for ``sb3.learning_starts`` steps before it learns again.
+  collected again. The replay memory of sb3-dqn, sb3-sac and sb3-td3 is saved with the model
+  (:mod:`mitlc.learn.backends.sb3_replay`), so the resumed run samples from it and learns from
+  its first step; where it was not saved (too large, or an older checkpoint) the resumed run
+  refills it for ``sb3.learning_starts`` steps before it learns again.
 * **eval and plot** (:func:`load_learner`, called by :func:`mitlc.learn.run.load_learner`;
   :mod:`mitlc.learn.backends.sb3_policy`): the policy acts greedily (as ``deterministic=True``)
   among
@@ -67,6 +69,7 @@ from mitlc.learn.backends.sb3_offpolicy import (
     offpolicy_extras,
     offpolicy_settings,
 )
+from mitlc.learn.backends.sb3_replay import ReplayState
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.device import resolve_device
 from mitlc.learn.held import run_never_held
@@ -198,11 +201,18 @@ class ModelState:
         """Each optimiser's key in the state, and its attribute path in the model
         (``actor.optimizer``)."""
         self.tensors: tuple[str, ...] = tuple(tensors)
+        memory = getattr(model, "replay_buffer", None)
+        self.replay = None if memory is None else ReplayState(memory)
+        """The off-policy algorithms' replay memory (:mod:`mitlc.learn.backends.sb3_replay`)."""
 
     def unchecked(self) -> tuple[str, ...]:
-        """The optimisers' moments: a fresh optimiser has none yet (torch checks them against
-        the network on loading)."""
-        return tuple(f"model.{key}.state" for key in self.optimizers)
+        """The optimisers' moments (a fresh optimiser has none yet: torch checks them against
+        the network on loading) and the replay memory's rows (:class:`ReplayState` checks
+        them)."""
+        return (*(f"model.{key}.state" for key in self.optimizers), "model.replay.arrays")
+
+    OPTIONAL = ("model.replay",)
+    """What a checkpoint of an older mitlc lacks (:func:`~mitlc.learn.rundir.state.restore`)."""
 
     def state_dict(self) -> dict[str, Any]:
         """The checkpointed part of the model."""
@@ -216,6 +226,8 @@ class ModelState:
         for name in self.tensors:
             state[name] = getattr(model, name).detach()
         state["counters"] = {n.strip("_"): int(getattr(model, n, 0)) for n in self.COUNTERS}
+        if self.replay is not None:
+            state["replay"] = self.replay.state_dict()
         return state
 
     def load_state_dict(self, saved: dict[str, Any]) -> None:
@@ -231,6 +243,8 @@ class ModelState:
         for name in self.COUNTERS:
             if hasattr(self.model, name):
                 setattr(self.model, name, int(saved["counters"][name.strip("_")]))
+        if self.replay is not None and "replay" in saved:
+            self.replay.load_state_dict(saved["replay"])
 
 
 # -- training --------------------------------------------------------------------------------------
@@ -314,7 +328,8 @@ def _train(
         raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None
     state, tally = ModelState(model, config), Tally()
     if resume:
-        loaded = restore(directory, {"model": state, "tally": tally}, unchecked=state.unchecked())
+        loaded = restore(directory, {"model": state, "tally": tally},
+                         unchecked=state.unchecked(), optional=state.OPTIONAL)  # fmt: skip
         if tally.steps != loaded.steps or model.num_timesteps != loaded.steps:
             raise RunError(f"{loaded.files['json']}: the counters are not the checkpoint's steps")
         if tally.steps >= s.steps:
@@ -323,7 +338,7 @@ def _train(
                 f"run's total, so give more than {tally.steps:,} to go on"
             )
         model.set_random_seed(config.seed + tally.steps)  # new episodes, not the first ones
-        if config.algo in OFF_POLICY:  # the replay memory is not saved: refill it first
+        if state.replay is not None and not state.replay.restored:  # refill it first
             model.learning_starts = tally.steps + s.learning_starts
         truncate_metrics(directory / METRICS, tally.episodes)
         (directory / SUMMARY).unlink(missing_ok=True)

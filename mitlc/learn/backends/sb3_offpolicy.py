@@ -13,8 +13,9 @@ Hoof and Meger, ICML 2018).
 * **Checkpoints** hold what SB3 itself declares as its model's state
   (``_get_torch_save_params``): the policy (SAC: actor, critic, critic_target; TD3 also the
   actor_target), every optimiser (actor and critic; SAC's entropy coefficient's when it is
-  learned) and SAC's ``log_ent_coef``; the replay memory is not saved, so a resumed run takes
-  random actions for ``sb3.learning_starts`` steps, refilling it, before it learns again.
+  learned) and SAC's ``log_ent_coef``; and the replay memory
+  (:mod:`mitlc.learn.backends.sb3_replay`), so a resumed run samples from what the stopped one
+  had and learns from its first step.
 * **Counterfactual experience** (``sb3.crm``): the replay memory also stores the transitions of
   the task's other states (:mod:`mitlc.learn.backends.sb3_crm`).
 """
@@ -32,7 +33,7 @@ from mitlc.learn.config import TrainConfig
 from mitlc.learn.rundir.files import RunError
 
 OFF_POLICY = ("sb3-dqn", "sb3-sac", "sb3-td3")
-"""The backends that learn from a replay memory (not checkpointed)."""
+"""The backends that learn from a replay memory (checkpointed with the model)."""
 
 CONTINUOUS = ("sb3-sac", "sb3-td3")
 """The backends that need a ``Box`` action space."""

@@ -37,13 +37,14 @@ def restore(
     *,
     rows: tuple[str, ...] = (),
     unchecked: tuple[str, ...] = (),
+    optional: tuple[str, ...] = (),
 ) -> checkpoint.Loaded:
     """Load the latest checkpoint of ``directory`` into the fresh objects ``parts`` (by their
-    key in the saved state); ``rows`` and ``unchecked`` as for :func:`conform`."""
+    key in the saved state); ``rows``, ``unchecked`` and ``optional`` as for :func:`conform`."""
     loaded = checkpoint.load(directory)
     template = {name: part.state_dict() for name, part in parts.items()}
     try:
-        conform(loaded.state, template, rows=rows, unchecked=unchecked)
+        conform(loaded.state, template, rows=rows, unchecked=unchecked, optional=optional)
     except Mismatch as err:
         raise RunError(f"{loaded.files.get(err.kind, loaded.files['json'])}: {err}") from None
     for name, part in parts.items():
@@ -81,12 +82,15 @@ def conform(
     *,
     rows: tuple[str, ...] = (),
     unchecked: tuple[str, ...] = (),
+    optional: tuple[str, ...] = (),
 ) -> None:
     """Raise :class:`Mismatch` unless ``saved`` has ``template``'s structure: the same dict
     keys, list lengths and scalar types, arrays and tensors of the same dtype and shape (arrays
     under a path in ``rows`` may have another number of rows). Paths in ``unchecked`` are left
     to the object that restores them, and so is every entry named :data:`FREE_FORM` (a task
-    wrapper's copy of its env's last ``info``, whose keys are the env's)."""
+    wrapper's copy of its env's last ``info``, whose keys are the env's). Paths in
+    ``optional`` may be missing (a checkpoint of an older mitlc); where present they are
+    checked."""
     if where in unchecked or where.rpartition(".")[2] in FREE_FORM:
         return
     tensor = tensor_type()
@@ -103,25 +107,22 @@ def conform(
         if not isinstance(saved, dict):
             raise Mismatch(where, f"expected a mapping, found {_kind(saved)}")
         missing, extra = template.keys() - saved.keys(), saved.keys() - template.keys()
+        missing = {k for k in missing if (f"{where}.{k}" if where else str(k)) not in optional}
         if missing or extra:
             raise Mismatch(
                 where, f"missing {sorted(map(str, missing))}, unexpected {sorted(map(str, extra))}"
             )
         for key, value in template.items():
-            conform(
-                saved[key],
-                value,
-                f"{where}.{key}" if where else str(key),
-                rows=rows,
-                unchecked=unchecked,
-            )
+            if key in saved:
+                path = f"{where}.{key}" if where else str(key)
+                conform(saved[key], value, path, rows=rows, unchecked=unchecked, optional=optional)
     elif isinstance(template, list | tuple):
         if type(saved) is not type(template) or len(saved) != len(template):
             size = f" of {len(saved)}" if isinstance(saved, list | tuple) else ""
             wanted = f"{type(template).__name__} of {len(template)}"
             raise Mismatch(where, f"expected a {wanted}, found {_kind(saved)}{size}")
         for i, (a, b) in enumerate(zip(saved, template, strict=True)):
-            conform(a, b, f"{where}[{i}]", rows=rows, unchecked=unchecked)
+            conform(a, b, f"{where}[{i}]", rows=rows, unchecked=unchecked, optional=optional)
     elif type(saved) is not type(template) and _scalar_kind(saved) != _scalar_kind(template):
         raise Mismatch(where, f"expected {_kind(template)}, found {_kind(saved)}")
 
