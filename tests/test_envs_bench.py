@@ -1,0 +1,100 @@
+"""bench/envs_bench.py's records in git: a finished run's record counts in a later sitting only
+where the bench would run the same command now (a budget or setting changed makes it stale),
+whatever the machine's interpreter and run directory."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def bench() -> Any:
+    spec = importlib.util.spec_from_file_location("envs_bench", ROOT / "bench" / "envs_bench.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["envs_bench"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def options(records: Path, **given: Any) -> argparse.Namespace:
+    values = {"record": records, "steps_scale": 1.0, "device": None, "episodes": None,
+              "provenance": {"commit": "abc", "cpus": 2}, **given}  # fmt: skip
+    return argparse.Namespace(**values)
+
+
+def a_run(bench: Any, out: Path, task: str = "case1c", arm: str = "mitlc") -> Any:
+    return next(r for r in bench.plan(list(bench.TASKS), [1], out) if r.label == f"{task} {arm} s1")
+
+
+def record_of(bench: Any, run: Any, args: argparse.Namespace, python: str) -> dict[str, Any]:
+    line = bench.command(run, args.steps_scale, args.device, bench.crm_on(run))
+    line = [python, *line[1:]]
+    return {"task": run.task.name, "arm": run.arm.name, "seed": run.seed, "success_rate": 0.5,
+            "command": line, "notes": [], "eval_episodes": run.task.eval_episodes}  # fmt: skip
+
+
+def test_a_record_of_the_same_command_counts_elsewhere(
+    bench: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Made on another machine (another interpreter, another --out): it counts, and the bench
+    neither trains nor evaluates the run again."""
+    args = options(tmp_path / "records")
+    run = a_run(bench, tmp_path / "here")
+    elsewhere = a_run(bench, tmp_path / "there")
+    bench.keep(elsewhere, record_of(bench, elsewhere, args, "/other/python"), args)
+    saved = json.loads((tmp_path / "records" / "case1c-mitlc-s1.json").read_text())
+    assert saved["commit"] == "abc" and saved["success_rate"] == 0.5
+    assert bench.signature(saved["command"]) == bench.signature(
+        bench.command(run, 1.0, None, False)
+    )
+    assert bench.recorded(run, args)["success_rate"] == 0.5
+
+    def no(*_: Any) -> Any:
+        raise AssertionError("a recorded run was run again")
+
+    monkeypatch.setattr(bench, "train", no)
+    monkeypatch.setattr(bench, "evaluate", no)
+    bench.execute(run, 1, 1, args)
+    assert run.result is not None and run.result["success_rate"] == 0.5
+
+
+@pytest.mark.parametrize("change", ["budget", "episodes", "seed", "setting"])
+def test_a_record_of_another_command_is_stale(bench: Any, tmp_path: Path, change: str) -> None:
+    args = options(tmp_path / "records")
+    run = a_run(bench, tmp_path / "here")
+    record = record_of(bench, run, args, "/usr/bin/python3")
+    if change == "budget":
+        record["command"] = [w.replace("sb3.steps=150000", "sb3.steps=1000")
+                             for w in record["command"]]  # fmt: skip
+    elif change == "episodes":
+        record["eval_episodes"] = 100
+    elif change == "seed":
+        record["command"][record["command"].index("--seed") + 1] = "2"
+    else:
+        record["command"] += ["--set", "shaping=2"]
+    assert record["command"] != record_of(bench, run, args, "/usr/bin/python3")["command"] or (
+        change == "episodes"
+    )
+    bench.keep(run, record, args)
+    assert bench.recorded(run, args) is None
+
+
+def test_no_records_at_scaled_budgets(bench: Any, tmp_path: Path) -> None:
+    """A record names the command, so a record of a scaled run is stale at full budgets."""
+    args = options(tmp_path / "records", steps_scale=0.5)
+    run = a_run(bench, tmp_path / "here")
+    bench.keep(run, record_of(bench, run, args, "py"), args)
+    assert bench.recorded(run, options(tmp_path / "records")) is None
+    assert bench.recorded(run, args) is not None
+    assert bench.recorded(dataclasses.replace(run, seed=2), args) is None
