@@ -91,10 +91,12 @@ bench-sb3: $(STAMP)
 
 # Env worlds side by side (issue 24): plain SB3 (state one-hot, pass/fail reward) beside mitlc's
 # observation and shaping at the same env steps, 3 seeds each, on MiniGrid DoorKey, PointMaze,
-# the continuous cases 1 and 2 and the paper's case 2 (with mitlc's recurrent DQN), IQM across
-# tasks and the issue's targets (hours on a CPU; --steps-scale 0.1 for a quick look).
+# the continuous cases 1 and 2 and the paper's case 2 (with mitlc's tabular Q against its 120 s),
+# IQM across tasks and the issue's targets. Hours on a CPU, over several sittings: Ctrl-C stops
+# it, the same command goes on, and each finished run keeps its record in bench/results/envs
+# (in git), so runs finished on another machine count (--steps-scale 0.1 for a quick look).
 bench-envs: $(STAMP)
-	$(BIN)/python bench/envs_bench.py --out build/bench-envs
+	$(BIN)/python bench/envs_bench.py --out build/bench-envs --jobs $(shell nproc)
 
 # Sweeps at scale (issue 14): 20 seeds of case 1 and 10 of case 3 one after another, on Ray on
 # this machine, and on a two-node Ray cluster started here (about 20 minutes).

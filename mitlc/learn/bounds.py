@@ -100,7 +100,7 @@ BUDGET = 100_000_000
 _BUDGET_WHY = (
     "a run's total: at tabular Q's 40,000 episodes/s (1,000,000 in 25 s on case 2) the most "
     "takes 40 minutes, the deep learners and SB3 days; the largest shipped budget is 1,200,000 "
-    "episodes (frozenlake8x8), 300,000 sb3 steps (bench/envs_bench.py)"
+    "episodes (frozenlake8x8), 299,008 sb3 steps (DoorKey, bench/envs_bench.py)"
 )
 _COUNTER_WHY = (
     "compared with a counter of the run: past the largest budget (100,000,000) it could never "
