@@ -156,3 +156,37 @@ def test_a_run_resumed_without_its_memory_refills_it(
     assert more.exit_code == 0, more.output
     model = checkpoint.load(out).state["model"]
     assert model["counters"]["n_updates"] == 160
+
+
+def test_a_resumed_run_with_counterfactuals_goes_on_with_its_memory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``sb3.crm``: the memory the resumed SAC starts from is the checkpoint's (its rows, which
+    of them are counterfactual, their count), and it learns from its first step."""
+    from mitlc.learn.backends.sb3 import ModelState
+    from tests.test_sb3_continuous import PENDULUM
+
+    world = tmp_path / "pendulum.yaml"
+    world.write_text(PENDULUM)
+    out = tmp_path / "run"
+    assert train(world, out, "sb3-sac", 150, "sb3.crm=true", "sb3.crm_limit=2").exit_code == 0
+    saved = checkpoint.load(out).state["model"]["replay"]
+    flags = saved["arrays"]["counterfactual"]
+    assert saved["kept"] and saved["made"] > 0 and int(flags.sum()) == saved["made"]
+    assert len(flags) == saved["pos"] > 150
+    loaded: dict[str, Any] = {}
+    load = ModelState.load_state_dict
+
+    def spy(self: ModelState, state: dict[str, Any]) -> None:
+        load(self, state)
+        assert self.replay is not None
+        loaded.update(rows=self.replay.rows(), made=self.replay.memory.made,
+                      arrays=arrays_of(self.replay.memory))  # fmt: skip
+
+    monkeypatch.setattr(ModelState, "load_state_dict", spy)
+    more = train(world, out, None, 260, "--resume")
+    assert more.exit_code == 0, more.output
+    assert loaded["rows"] == saved["pos"] and loaded["made"] == saved["made"]
+    for name, array in saved["arrays"].items():
+        assert np.array_equal(loaded["arrays"][name][: saved["pos"]], array), name
+    assert checkpoint.load(out).state["model"]["counters"]["n_updates"] == 210
