@@ -154,6 +154,8 @@ def test_a_run_resumed_without_its_memory_refills_it(
         assert not saved["kept"] and saved["arrays"] == {} and saved["pos"] == 150
     more = train(world, out, None, 260, "--resume")
     assert more.exit_code == 0, more.output
+    why = "an older mitlc's" if how == "older checkpoint" else "its rows take more than 100 bytes"
+    assert why in more.output and "50 steps of random actions to refill it" in more.output
     model = checkpoint.load(out).state["model"]
     assert model["counters"]["n_updates"] == 160
 

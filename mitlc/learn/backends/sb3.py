@@ -281,7 +281,7 @@ def train(
         directory.mkdir(parents=True, exist_ok=True)
     with locked(directory):
         _start(directory, setting, resume)
-        return _train(directory, setting, device, resume, progress, should_stop)
+        return _train(directory, setting, device, resume, progress, should_stop, notes)
 
 
 def _start(directory: Path, setting: Setting, resume: bool) -> None:
@@ -309,6 +309,7 @@ def _train(
     resume: bool,
     progress: Callable[[Progress], None] | None,
     should_stop: Callable[[], bool] | None,
+    notes: Callable[[str], None] | None = None,
 ) -> RunResult:
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -340,6 +341,10 @@ def _train(
         model.set_random_seed(config.seed + tally.steps)  # new episodes, not the first ones
         if state.replay is not None and not state.replay.restored:  # refill it first
             model.learning_starts = tally.steps + s.learning_starts
+            if notes is not None:
+                notes(f"note: {loaded.files['json']}: {state.replay.missing}; the run takes "
+                      f"{s.learning_starts:,} steps of random actions to refill it before it "
+                      "learns again")  # fmt: skip
         truncate_metrics(directory / METRICS, tally.episodes)
         (directory / SUMMARY).unlink(missing_ok=True)
     save_config(directory, setting)

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from mitlc.inputs import MAX_CHECKPOINT_BYTES
+from mitlc.inputs import MAX_CHECKPOINT_BYTES, size_text
 
 REPLAY_BYTES = MAX_CHECKPOINT_BYTES // 2
 """The most bytes of replay rows a checkpoint holds (half of what mitlc reads of one)."""
@@ -57,6 +57,8 @@ class ReplayState:
     def __init__(self, memory: Any) -> None:
         self.memory = memory
         self.restored = False
+        self.missing = "the checkpoint holds no replay memory (an older mitlc's)"
+        """Why :meth:`load_state_dict` put no rows back, where it did not."""
 
     def rows(self) -> int:
         """The filled rows."""
@@ -84,6 +86,8 @@ class ReplayState:
             memory.made = int(saved["made"])
             memory.rng.bit_generator.state = saved["rng"]
         if not saved["kept"]:
+            self.missing = (f"the replay memory was not saved (its rows take more than "
+                            f"{size_text(REPLAY_BYTES)})")  # fmt: skip
             return
         pos, full, arrays = int(saved["pos"]), bool(saved["full"]), saved["arrays"]
         size = int(memory.buffer_size)
