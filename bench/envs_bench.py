@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/envs_bench.py [--tasks doorkey,pointmaze,case1c,case2c,case2]
         [--arms plain,mitlc,...] [--seeds 0,1,2] [--steps-scale 1] [--episodes N] [--out DIR]
-        [--jobs 1] [--device D] [--record DIR | --no-record]
+        [--jobs 1] [--device D] [--record DIR | --no-record] [--report]
 
 Each task (:data:`TASKS`: a world file, an SB3 algorithm and its budget in env steps) is
 learned by two arms (:data:`ARMS`) at the same budget and seeds:
@@ -474,7 +474,7 @@ def markdown(table: Records, seeds: int) -> list[str]:
     for task, arms in table.items():
         for arm, records in arms.items():
             if not records:
-                lines.append(f"| {task} | {arm} | - | failed | - | - | - |")
+                lines.append(f"| {task} | {arm} | - | missing | - | - | - |")
                 continue
             mean = np.mean([r["success_rate"] for r in records])
             each = "; ".join(
@@ -483,7 +483,7 @@ def markdown(table: Records, seeds: int) -> list[str]:
                 for r in records
             )
             if len(records) < seeds:
-                each += f" ({seeds - len(records)} failed)"
+                each += f" ({seeds - len(records)} missing)"
             steps = np.mean([r["steps"] for r in records])
             wall = np.mean([r["wall_s"] for r in records])
             algo = records[0]["algo"]
@@ -519,7 +519,8 @@ def aggregate(table: Records, reps: int) -> tuple[dict[str, Any], list[float] | 
 
 
 def targets(table: Records, seeds: int) -> list[dict[str, Any]]:
-    """Each target of :data:`TARGETS` whose task ran: the figures and whether it is met."""
+    """Each target of :data:`TARGETS` whose task ran: the figures and whether it is met (None:
+    not measured, a run of it missing)."""
     found = []
     for target in TARGETS:
         records = table.get(target.task, {}).get(target.arm)
@@ -527,7 +528,7 @@ def targets(table: Records, seeds: int) -> list[dict[str, Any]]:
             continue
         row: dict[str, Any] = {"target": target.text, "task": target.task, "arm": target.arm}
         if len(records) < seeds or not records:
-            row.update(met=False, why=f"{seeds - len(records)} of {seeds} runs failed")
+            row.update(met=None, why=f"{seeds - len(records)} of {seeds} runs missing")
             found.append(row)
             continue
         success = float(np.mean([r["success_rate"] for r in records]))
@@ -541,7 +542,8 @@ def targets(table: Records, seeds: int) -> list[dict[str, Any]]:
     return found
 
 
-def main() -> None:
+def parse() -> tuple[argparse.Namespace, list[Task], list[int], list[Run]]:
+    """The options, the chosen tasks, the seeds and the plan of runs (an error for bad ones)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     names = [task.name for task in TASKS]
     parser.add_argument("--tasks", default=",".join(names), help=f"of {', '.join(names)}")
@@ -561,12 +563,16 @@ def main() -> None:
                         help=f"where finished runs keep their records (default: {RECORDS} "
                              "at full budgets, none otherwise)")  # fmt: skip
     parser.add_argument("--no-record", action="store_true", help="keep no records")
+    parser.add_argument("--report", action="store_true",
+                        help="run nothing: the tables of the records in --record")  # fmt: skip
     args = parser.parse_args()
     full = args.steps_scale == 1 and args.episodes is None
     if args.no_record or (args.record is None and not full):
         args.record = None
     elif args.record is None:
         args.record = RECORDS
+    if args.report and args.record is None:
+        parser.error("--report reads the records: at full budgets, or give --record")
     args.provenance = provenance()
     chosen = [name.strip() for name in args.tasks.split(",") if name.strip()]
     unknown = [name for name in chosen if name not in names]
@@ -575,20 +581,26 @@ def main() -> None:
     seeds = [int(seed) for seed in args.seeds.split(",") if seed.strip()]
     if args.steps_scale <= 0 or args.jobs < 1 or not seeds:
         parser.error("--steps-scale and --jobs must be positive, --seeds not empty")
-    out = args.out or Path(tempfile.mkdtemp(prefix="envs-bench-"))
-    out.mkdir(parents=True, exist_ok=True)
-    if args.jobs > 1 and "OMP_NUM_THREADS" not in os.environ:  # torch's threads, shared out
-        os.environ["OMP_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // args.jobs))
+    if args.out is None and not args.report:
+        args.out = Path(tempfile.mkdtemp(prefix="envs-bench-"))
     tasks = [next(task for task in TASKS if task.name == name) for name in chosen]
     arms = None if args.arms is None else [a.strip() for a in args.arms.split(",") if a.strip()]
     known = {arm.name for task in TASKS for arm in (*ARMS, *task.extra_arms)}
     if arms is not None and (not arms or set(arms) - known):
         parser.error(f"--arms: unknown {', '.join(sorted(set(arms) - known))} (of "
                      f"{', '.join(sorted(known))})")  # fmt: skip
-    runs = plan(tasks, seeds, out, arms)
+    runs = plan(tasks, seeds, args.out or Path("build/bench-envs"), arms)
     if not runs:
         parser.error(f"--arms: no run of {args.arms} on {', '.join(chosen)}")
-    say(f"envs bench: {len(runs)} runs under {out}")
+    return args, tasks, seeds, runs
+
+
+def run_all(runs: list[Run], args: argparse.Namespace) -> None:
+    """Every run not done (see the module docstring); exit 130 where a signal stopped them."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.jobs > 1 and "OMP_NUM_THREADS" not in os.environ:  # torch's threads, shared out
+        os.environ["OMP_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // args.jobs))
+    say(f"envs bench: {len(runs)} runs under {args.out}")
     stop_on_signals()
     alone = [run for run in runs if timed(run)]  # their wall time is a target
     rest = [run for run in runs if not timed(run)]
@@ -603,10 +615,26 @@ def main() -> None:
         say("envs bench: stopped; run the same command again to go on")
         sys.exit(130)
 
+
+def main() -> None:
+    args, tasks, seeds, runs = parse()
+    if args.report:
+        for run in runs:
+            run.result = recorded(run, args)
+    else:
+        run_all(runs, args)
+    report(runs, tasks, seeds, args)
+
+
+def report(runs: list[Run], tasks: list[Task], seeds: list[int], args: argparse.Namespace) -> None:
+    """Print the tables, the IQM and the targets; write them to ``--out/results.json``."""
     table = per_arm(runs)
     scale = "" if args.steps_scale == 1 else f", budgets x {args.steps_scale:g}"
+    where = (f"the records in {args.record} (commits "
+             f"{', '.join(sorted({str(r.result.get('commit')) for r in runs if r.result}))})"
+             if args.report else f"jobs {args.jobs}")  # fmt: skip
     print(f"envs bench: seeds {','.join(map(str, seeds))}{scale}; greedy success from "
-          f"mitlc eval --json; wall s is the train process's (jobs {args.jobs})\n")  # fmt: skip
+          f"mitlc eval --json; wall s is the train process's ({where})\n")  # fmt: skip
     for line in markdown(table, len(seeds)):
         print(line)
     for run in runs:
@@ -623,7 +651,7 @@ def main() -> None:
     if checked:
         print("\nissue 24's targets" + (" (scaled budgets: not the issue's)" if scale else ""))
     for row in checked:
-        verdict = "PASS" if row["met"] else "FAIL"
+        verdict = {True: "PASS", False: "FAIL", None: "NOT MEASURED"}[row["met"]]
         if "why" in row:
             print(f"  {verdict} {row['target']}: {row['why']}")
             continue
@@ -638,13 +666,15 @@ def main() -> None:
         "eval_episodes": args.episodes,
         "tasks": {t.name: dataclasses.asdict(t) for t in tasks},
         "runs": [run.result for run in runs if run.result is not None],
-        "failed": [run.label for run in runs if run.result is None],
+        "missing": [run.label for run in runs if run.result is None],
         "iqm": iqm,
         "p_mitlc_over_plain": pair,
         "targets": checked,
     }
-    (out / "results.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
-    print(f"\nwritten: {out / 'results.json'}")
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "results.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
+        print(f"\nwritten: {args.out / 'results.json'}")
 
 
 if __name__ == "__main__":

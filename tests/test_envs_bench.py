@@ -98,3 +98,29 @@ def test_no_records_at_scaled_budgets(bench: Any, tmp_path: Path) -> None:
     assert bench.recorded(run, options(tmp_path / "records")) is None
     assert bench.recorded(run, args) is not None
     assert bench.recorded(dataclasses.replace(run, seed=2), args) is None
+
+
+def test_the_report_is_made_of_the_records_alone(bench: Any, tmp_path: Path) -> None:
+    """``--report`` runs nothing: the table holds the recorded arm (with its records' commit)
+    and says which runs are missing; a target without its runs is not measured."""
+    import subprocess
+
+    args = options(tmp_path / "records")
+    for seed in (0, 1, 2):
+        run = next(r for r in bench.plan(list(bench.TASKS), [seed], tmp_path / "x")
+                   if r.label == f"doorkey mitlc s{seed}")  # fmt: skip
+        record = record_of(bench, run, args, "py")
+        record.update(algo="sb3-ppo", success_rate=0.9 + seed / 100, interval95=[0.8, 1.0],
+                      steps=299_008, wall_s=10.0)  # fmt: skip
+        bench.keep(run, record, args)
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "envs_bench.py"), "--report", "--record",
+         str(tmp_path / "records"), "--tasks", "doorkey,pointmaze", "--arms", "plain,mitlc"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    out = done.stdout
+    assert "| doorkey | mitlc | sb3-ppo | 0.910 | s0 0.900 [0.800, 1.000]; s1 0.910" in out
+    assert "| doorkey | plain | - | missing |" in out and "(commits abc)" in out
+    assert "PASS DoorKey-5x5 >= 0.9" in out
+    assert "NOT MEASURED PointMaze_UMaze >= 0.9 within 300,000 steps: 3 of 3 runs missing" in out
+    assert not (tmp_path / "x").exists()
