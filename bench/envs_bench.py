@@ -38,7 +38,8 @@ keeps its record in git, ``bench/results/envs/TASK-ARM-sSEED.json`` (:data:`RECO
 counts a record made by the command it would run now and does not run it again; a record of
 another command (a budget or setting changed since) is stale and the run is made again. The
 tables are of records and runs together; what is lost with a machine is the runs not yet
-finished. Runs with a wall-time target (:data:`TARGETS`) run
+finished. ``--report`` runs nothing and prints the tables of the records alone (a target with
+a run missing is NOT MEASURED). Runs with a wall-time target (:data:`TARGETS`) run
 first and alone, whatever ``--jobs`` says. Printed: a Markdown table per task and arm (mean
 greedy success over the seeds, each seed's with its interval, env steps from ``summary.json``,
 mean wall time), rliable's IQM of the success across the tasks per arm with its 95%
