@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/envs_bench.py [--tasks doorkey,pointmaze,case1c,case2c,case2]
         [--arms plain,mitlc,...] [--seeds 0,1,2] [--steps-scale 1] [--episodes N] [--out DIR]
-        [--jobs 1] [--device D] [--record DIR | --no-record] [--report]
+        [--jobs 1] [--device D] [--record DIR | --no-record] [--report] [--progress-every S]
 
 Each task (:data:`TASKS`: a world file, an SB3 algorithm and its budget in env steps) is
 learned by two arms (:data:`ARMS`) at the same budget and seeds:
@@ -23,7 +23,9 @@ shaping=1``: the observation, the automaton state and the frontier), timed again
 
 Every run goes through the command line into its own run directory under ``--out`` (``mitlc
 train --no-eval``, timed: the wall time is the ``train`` process's, start-up included; then
-``mitlc eval RUN --json --episodes N``, greedy success with its 95% interval). A run whose
+``mitlc eval RUN --json --episodes N``, greedy success with its 95% interval); every
+``--progress-every`` seconds (300) a line per run in training says its steps and its training
+success (the last line of its ``metrics.jsonl``). A run whose
 directory already has ``run/summary.json`` and ``result.json`` is not run again, and one
 interrupted in training (SIGINT or SIGTERM: every ``mitlc train`` saves a checkpoint and the
 bench starts nothing new) goes on from its latest checkpoint (``mitlc train --resume``), so a
@@ -270,8 +272,14 @@ def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]
         line = command(run, scale, device, crm)
         before = json.loads(walls.read_text(encoding="utf-8")) if walls.is_file() else []
         start = time.perf_counter()
-        done = subprocess.run([*line, *(["--resume"] if resume else [])], cwd=ROOT,
-                              capture_output=True, text=True)  # fmt: skip
+        with _say:
+            TRAINING[run.label] = run
+        try:
+            done = subprocess.run([*line, *(["--resume"] if resume else [])], cwd=ROOT,
+                                  capture_output=True, text=True)  # fmt: skip
+        finally:
+            with _say:
+                TRAINING.pop(run.label, None)
         seconds = time.perf_counter() - start
         walls.write_text(json.dumps([*before, round(seconds, 3)]), encoding="utf-8")
         log = f"$ {' '.join(line)}{' --resume' if resume else ''}\n{done.stdout}{done.stderr}"
@@ -373,6 +381,37 @@ def provenance() -> dict[str, Any]:
 
 
 _say = threading.Lock()
+
+TRAINING: dict[str, Run] = {}
+"""The runs in training now, by label (under ``_say``)."""
+
+
+def progress(run: Run, scale: float) -> str:
+    """Where ``run``'s training is: the last line of its ``metrics.jsonl``."""
+    metrics = run.directory / "run" / "metrics.jsonl"
+    lines = metrics.read_text(encoding="utf-8").splitlines() if metrics.is_file() else []
+    if not lines:
+        return f"{run.label}: starting"
+    last = json.loads(lines[-1])
+    if run.arm.episodes is not None:
+        budget, done, unit = round(run.arm.episodes * scale), last["episodes"], "episodes"
+    else:
+        budget, done, unit = round(run.task.steps * scale), last["steps"], "steps"
+    return (f"{run.label}: {done:,} of {budget:,} {unit}, training success "
+            f"{last['success_rate']:.2f}")  # fmt: skip
+
+
+def watch(every: float, scale: float, ended: threading.Event) -> None:
+    """Every ``every`` seconds until ``ended``, one line per run in training."""
+    while not ended.wait(every):
+        with _say:
+            running = list(TRAINING.values())
+        for run in running:
+            try:
+                say(f"  {progress(run, scale)}")
+            except (OSError, ValueError, KeyError):  # a line being written
+                continue
+
 
 STOP = threading.Event()
 """Set on SIGINT or SIGTERM: runs not yet started are left for the next sitting."""
@@ -564,6 +603,8 @@ def parse() -> tuple[argparse.Namespace, list[Task], list[int], list[Run]]:
                         help=f"where finished runs keep their records (default: {RECORDS} "
                              "at full budgets, none otherwise)")  # fmt: skip
     parser.add_argument("--no-record", action="store_true", help="keep no records")
+    parser.add_argument("--progress-every", type=float, default=300.0,
+                        help="seconds between the lines on the runs in training")  # fmt: skip
     parser.add_argument("--report", action="store_true",
                         help="run nothing: the tables of the records in --record")  # fmt: skip
     args = parser.parse_args()
@@ -580,8 +621,9 @@ def parse() -> tuple[argparse.Namespace, list[Task], list[int], list[Run]]:
     if unknown or not chosen:
         parser.error(f"--tasks: unknown {', '.join(unknown)} (of {', '.join(names)})")
     seeds = [int(seed) for seed in args.seeds.split(",") if seed.strip()]
-    if args.steps_scale <= 0 or args.jobs < 1 or not seeds:
-        parser.error("--steps-scale and --jobs must be positive, --seeds not empty")
+    if args.steps_scale <= 0 or args.jobs < 1 or not seeds or args.progress_every <= 0:
+        parser.error("--steps-scale, --jobs and --progress-every must be positive, --seeds "
+                     "not empty")  # fmt: skip
     if args.out is None and not args.report:
         args.out = Path(tempfile.mkdtemp(prefix="envs-bench-"))
     tasks = [next(task for task in TASKS if task.name == name) for name in chosen]
@@ -606,12 +648,17 @@ def run_all(runs: list[Run], args: argparse.Namespace) -> None:
     alone = [run for run in runs if timed(run)]  # their wall time is a target
     rest = [run for run in runs if not timed(run)]
     number = {id(run): i + 1 for i, run in enumerate([*alone, *rest])}
+    ended = threading.Event()
+    watcher = threading.Thread(target=watch, args=(args.progress_every, args.steps_scale, ended),
+                               daemon=True)  # fmt: skip
+    watcher.start()
     for run in alone:
         execute(run, number[id(run)], len(runs), args)
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         futures = [pool.submit(execute, run, number[id(run)], len(runs), args) for run in rest]
         for future in futures:
             future.result()
+    ended.set()
     if STOP.is_set():
         say("envs bench: stopped; run the same command again to go on")
         sys.exit(130)
