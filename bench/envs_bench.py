@@ -51,9 +51,11 @@ PASS/FAIL; all of it also in ``--out/results.json``.
 
 ``--steps-scale`` multiplies every budget (env steps and the tabular Q's episodes) for a quick
 look; the targets are then printed but say nothing about the issue. The full bench takes many
-hours on a CPU: measured on 2 cores, DoorKey's PPO trains about 400 env steps/s, PointMaze's
-SAC about 80, the recurrent PPO on case 2 about 60-100 (its short first runs), so a run of
-PointMaze is about an hour. ``--jobs`` runs several at once (torch's threads shared out).
+hours on a CPU: measured on 2 cores at ``--jobs 2`` (a run a core), a run of DoorKey's PPO takes
+8 to 12 minutes (about 500 env steps/s), of PointMaze's SAC about 20 (125 steps/s), of the
+recurrent PPO on case 2 about half an hour. ``--jobs`` runs several at once (torch's threads
+shared out). The tasks, arms and targets are in ``envs_plan.py``, the tables in
+``envs_report.py``.
 """
 
 from __future__ import annotations
@@ -69,157 +71,26 @@ import tempfile
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # its sibling modules
 
-ROOT = Path(__file__).resolve().parents[1]
-MITLC = [sys.executable, "-m", "mitlc"]
-Records = dict[str, dict[str, list[dict[str, Any]]]]
-"""Finished runs' records by task and arm."""
-RECORDS = ROOT / "bench" / "results" / "envs"
-"""Where full-budget runs keep their records, in git: the machine the bench ran on may not be
-the next sitting's, and a record outlives its run directory."""
-
-
-@dataclass(frozen=True)
-class Arm:
-    """How a task is learned: ``--set`` settings, whether counterfactual experience is asked for,
-    and, for an arm of its own learner, the algorithm and its budget in episodes."""
-
-    name: str
-    settings: tuple[str, ...]
-    crm: bool
-    algo: str | None = None
-    """None: the task's algorithm and env-step budget."""
-    episodes: int | None = None
-    """The budget of ``algo`` in episodes (``--episodes``) in place of the task's env steps."""
-
-
-@dataclass(frozen=True)
-class Task:
-    """A world file, the SB3 algorithm both arms run and its budget (env steps, ``sb3.steps``)."""
-
-    name: str
-    world: str
-    algo: str
-    steps: int
-    settings: tuple[str, ...] = ()
-    """More ``--set`` settings of every arm on this task (besides the arm's own)."""
-    eval_episodes: int = 10_000
-    extra_arms: tuple[Arm, ...] = ()
-
-
-ARMS = (
-    Arm("plain", ("task_obs=state", "shaping=0"), crm=False),
-    Arm("mitlc", ("task_obs=clocks", "shaping=1"), crm=False),
+from envs_plan import (
+    ARMS,
+    ENV_EVAL,
+    MITLC,
+    RECORDS,
+    ROOT,
+    TASKS,
+    Run,
+    Task,
+    command,
+    crm_on,
+    plan,
+    timed,
 )
-
-ENV_EVAL = 200
-"""Greedy evaluation episodes on env worlds (slow: a gymnasium env steps one at a time)."""
-
-TASKS = (
-    # 292 rollouts of 8 envs x 128 steps: PPO ends on a whole rollout, so 299,008 is the last
-    # one within the issue's 300,000 steps.
-    Task("doorkey", "specs/envs/minigrid-doorkey.yaml", "sb3-ppo", 299_008,
-         ("sb3.num_envs=8", "sb3.n_steps=128"), eval_episodes=ENV_EVAL),
-    # Half the issue's 300,000 steps (within its target), as the world file trains: SAC is
-    # about 65 env steps/s here, so a run is 40-55 minutes.
-    Task("pointmaze", "specs/envs/pointmaze.yaml", "sb3-sac", 150_000, eval_episodes=ENV_EVAL,
-         extra_arms=(Arm("mitlc-crm", ("task_obs=clocks", "shaping=1"), crm=True),)),
-    Task("case1c", "specs/continuous/case1.yaml", "sb3-ppo", 150_000),
-    Task("case2c", "specs/continuous/case2.yaml", "sb3-recurrent-ppo", 150_000),
-    Task("case2", "specs/paper/case2.yaml", "sb3-recurrent-ppo", 150_000,
-         extra_arms=(Arm("mitlc-q", ("shaping=1",), crm=False, algo="q",
-                         episodes=200_000),)),
-)  # fmt: skip
-
-CASE2_LOWER = 0.963648
-"""The best lower bound of case 2's optimum (``mitlc check specs/paper/case2.yaml``)."""
-
-
-@dataclass(frozen=True)
-class Target:
-    """Issue 24's target: mean greedy success over the seeds of ``arm`` on ``task`` at least
-    ``success``, every run within ``steps`` env steps and ``seconds`` of mean wall time."""
-
-    task: str
-    arm: str
-    success: float
-    text: str
-    steps: int | None = None
-    seconds: float | None = None
-
-
-TARGETS = (
-    Target("doorkey", "mitlc", 0.9, "DoorKey-5x5 >= 0.9 within 300,000 steps", steps=300_000),
-    Target("pointmaze", "mitlc", 0.9, "PointMaze_UMaze >= 0.9 within 300,000 steps",
-           steps=300_000),
-    Target("case2", "mitlc-q", 0.95 * CASE2_LOWER,
-           f"case 2 POMDP >= 0.95 x {CASE2_LOWER} = {0.95 * CASE2_LOWER:.4f} in under 120 s",
-           seconds=120.0),
-)  # fmt: skip
-
-
-def crm_section(algo: str) -> str | None:
-    """The settings section whose ``crm`` field ``algo`` reads, where it has one and the
-    learner takes it (SB3's counterfactual experience goes into a replay memory: its
-    off-policy algorithms only); None otherwise. Read from the config classes, so the bench
-    works before and after a learner gains the field."""
-    from mitlc.learn.backends.sb3_offpolicy import OFF_POLICY
-    from mitlc.learn.config import TrainConfig
-
-    if algo.startswith("sb3-") and algo not in OFF_POLICY:
-        return None
-    section = "sb3" if algo.startswith("sb3-") else algo
-    config = getattr(TrainConfig(), section, None)
-    if config is None or "crm" not in {f.name for f in dataclasses.fields(config)}:
-        return None
-    return section
-
-
-@dataclass
-class Run:
-    """One (task, arm, seed) and where it lives: ``DIR/run`` is the run directory,
-    ``DIR/train.json`` the timed train process, ``DIR/result.json`` the finished record."""
-
-    task: Task
-    arm: Arm
-    seed: int
-    directory: Path
-    result: dict[str, Any] | None = None
-    notes: list[str] = field(default_factory=list)
-
-    @property
-    def label(self) -> str:
-        return f"{self.task.name} {self.arm.name} s{self.seed}"
-
-
-def plan(tasks: list[Task], seeds: list[int], out: Path,
-         arms: list[str] | None = None) -> list[Run]:  # fmt: skip
-    """Every (task, arm, seed) of ``tasks`` in their order, of ``arms`` (in its order) where
-    given."""
-    runs = []
-    for task in tasks:
-        own = {arm.name: arm for arm in (*ARMS, *task.extra_arms)}
-        for arm in [own[a] for a in arms if a in own] if arms is not None else own.values():
-            for seed in seeds:
-                runs.append(Run(task, arm, seed, out / task.name / arm.name / f"s{seed}"))
-    return runs
-
-
-def timed(run: Run) -> bool:
-    """Whether a target of :data:`TARGETS` holds ``run``'s wall time (it must run alone)."""
-    return any(t.seconds is not None and (t.task, t.arm) == (run.task.name, run.arm.name)
-               for t in TARGETS)  # fmt: skip
-
-
-def crm_on(run: Run) -> bool:
-    """Whether ``run`` asks for counterfactual experience: its arm's, unless the learner has
-    refused it (its notes say so)."""
-    return run.arm.crm and not any(note.startswith("crm refused") for note in run.notes)
+from envs_report import report
 
 
 def stop_on_signals() -> None:
@@ -234,25 +105,6 @@ def stop_on_signals() -> None:
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
-
-
-def command(run: Run, scale: float, device: str | None, crm: bool) -> list[str]:
-    """The ``mitlc train`` command of ``run`` (budgets times ``scale``)."""
-    algo = run.arm.algo or run.task.algo
-    line = [*MITLC, "train", run.task.world, "--algo", algo, "--seed", str(run.seed)]
-    line += ["--out", str(run.directory / "run"), "--quiet", "--no-eval"]
-    if run.arm.episodes is not None:
-        line += ["--episodes", str(max(1, round(run.arm.episodes * scale)))]
-    else:
-        line += ["--set", f"sb3.steps={max(1, round(run.task.steps * scale))}"]
-    for setting in (*run.task.settings, *run.arm.settings):
-        line += ["--set", setting]
-    section = crm_section(algo)
-    if section is not None:  # the plain arm turns it off, whatever the world file says
-        line += ["--set", f"{section}.crm={'true' if crm else 'false'}"]
-    if device is not None:
-        line += ["--device", device]
-    return line
 
 
 def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]:
@@ -495,93 +347,6 @@ def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
     )
 
 
-def per_arm(runs: list[Run]) -> Records:
-    """The finished records by task and arm, in the order of the plan."""
-    table: Records = {}
-    for run in runs:
-        arms = table.setdefault(run.task.name, {})
-        records = arms.setdefault(run.arm.name, [])
-        if run.result is not None:
-            records.append(run.result)
-    return table
-
-
-def markdown(table: Records, seeds: int) -> list[str]:
-    lines = [
-        "| task | arm | algo | success (mean) | each seed: success [95%] | env steps | wall s |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for task, arms in table.items():
-        for arm, records in arms.items():
-            if not records:
-                lines.append(f"| {task} | {arm} | - | missing | - | - | - |")
-                continue
-            mean = np.mean([r["success_rate"] for r in records])
-            each = "; ".join(
-                f"s{r['seed']} {r['success_rate']:.3f} [{r['interval95'][0]:.3f}, "
-                f"{r['interval95'][1]:.3f}]"
-                for r in records
-            )
-            if len(records) < seeds:
-                each += f" ({seeds - len(records)} missing)"
-            steps = np.mean([r["steps"] for r in records])
-            wall = np.mean([r["wall_s"] for r in records])
-            algo = records[0]["algo"]
-            lines.append(
-                f"| {task} | {arm} | {algo} | {mean:.3f} | {each} | {steps:,.0f} | {wall:.1f} |"
-            )
-    return lines
-
-
-def aggregate(table: Records, reps: int) -> tuple[dict[str, Any], list[float] | None]:
-    """Per arm of :data:`ARMS`: rliable's IQM of the success (seeds x tasks, over the seeds
-    every task has) with its 95% stratified bootstrap interval, and the other statistics of
-    :func:`mitlc.sweep.report.interval_estimates`; and P(mitlc > plain) with its interval."""
-    from mitlc.sweep.report import improvement, interval_estimates
-
-    scores: dict[str, np.ndarray[Any, Any]] = {}
-    for arm in ARMS:
-        by_task = {t: {r["seed"]: r["success_rate"] for r in a.get(arm.name, [])}
-                   for t, a in table.items()}  # fmt: skip
-        seeds = sorted(set.intersection(*(set(s) for s in by_task.values())))
-        if seeds:
-            scores[arm.name] = np.array([[by_task[t][s] for t in by_task] for s in seeds])
-    estimates = interval_estimates(scores, reps=reps, seed=0) if scores else {}
-    result = {
-        name: {"seeds": int(scores[name].shape[0]), "tasks": list(table), **estimates[name]}
-        for name in scores
-    }
-    both = [scores.get(arm.name) for arm in ARMS]
-    pair = None
-    if both[0] is not None and both[1] is not None and both[0].shape == both[1].shape:
-        pair = improvement(both[1], both[0], reps=reps, seed=0)
-    return result, pair
-
-
-def targets(table: Records, seeds: int) -> list[dict[str, Any]]:
-    """Each target of :data:`TARGETS` whose task ran: the figures and whether it is met (None:
-    not measured, a run of it missing)."""
-    found = []
-    for target in TARGETS:
-        records = table.get(target.task, {}).get(target.arm)
-        if records is None:
-            continue
-        row: dict[str, Any] = {"target": target.text, "task": target.task, "arm": target.arm}
-        if len(records) < seeds or not records:
-            row.update(met=None, why=f"{seeds - len(records)} of {seeds} runs missing")
-            found.append(row)
-            continue
-        success = float(np.mean([r["success_rate"] for r in records]))
-        steps = max(r["steps"] for r in records)
-        wall = float(np.mean([r["wall_s"] for r in records]))
-        met = success >= target.success
-        met &= target.steps is None or steps <= target.steps
-        met &= target.seconds is None or wall <= target.seconds
-        row.update(success=success, max_steps=steps, mean_wall_s=wall, met=bool(met))
-        found.append(row)
-    return found
-
-
 def parse() -> tuple[argparse.Namespace, list[Task], list[int], list[Run]]:
     """The options, the chosen tasks, the seeds and the plan of runs (an error for bad ones)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -672,57 +437,6 @@ def main() -> None:
     else:
         run_all(runs, args)
     report(runs, tasks, seeds, args)
-
-
-def report(runs: list[Run], tasks: list[Task], seeds: list[int], args: argparse.Namespace) -> None:
-    """Print the tables, the IQM and the targets; write them to ``--out/results.json``."""
-    table = per_arm(runs)
-    scale = "" if args.steps_scale == 1 else f", budgets x {args.steps_scale:g}"
-    where = (f"the records in {args.record} (commits "
-             f"{', '.join(sorted({str(r.result.get('commit')) for r in runs if r.result}))})"
-             if args.report else f"jobs {args.jobs}")  # fmt: skip
-    print(f"envs bench: seeds {','.join(map(str, seeds))}{scale}; greedy success from "
-          f"mitlc eval --json; wall s is the train process's ({where})\n")  # fmt: skip
-    for line in markdown(table, len(seeds)):
-        print(line)
-    for run in runs:
-        for note in run.result["notes"] if run.result else []:
-            print(f"note: {run.label}: {note}")
-    iqm, pair = aggregate(table, args.reps)
-    print(f"\nIQM of the greedy success across {', '.join(table)} (95% stratified bootstrap):")
-    for name, stats in iqm.items():
-        point, low, high = stats["iqm"]
-        print(f"  {name:6} {point:.3f} [{low:.3f}, {high:.3f}]  ({stats['seeds']} seeds)")
-    if pair is not None:
-        print(f"  P(mitlc > plain) {pair[0]:.3f} [{pair[1]:.3f}, {pair[2]:.3f}]")
-    checked = targets(table, len(seeds))
-    if checked:
-        print("\nissue 24's targets" + (" (scaled budgets: not the issue's)" if scale else ""))
-    for row in checked:
-        verdict = {True: "PASS", False: "FAIL", None: "NOT MEASURED"}[row["met"]]
-        if "why" in row:
-            print(f"  {verdict} {row['target']}: {row['why']}")
-            continue
-        print(
-            f"  {verdict} {row['target']}: {row['arm']} {row['success']:.3f} mean success, "
-            f"{row['max_steps']:,} steps at most, {row['mean_wall_s']:.1f} s mean wall"
-        )
-    results = {
-        "seeds": seeds,
-        "steps_scale": args.steps_scale,
-        "jobs": args.jobs,
-        "eval_episodes": args.episodes,
-        "tasks": {t.name: dataclasses.asdict(t) for t in tasks},
-        "runs": [run.result for run in runs if run.result is not None],
-        "missing": [run.label for run in runs if run.result is None],
-        "iqm": iqm,
-        "p_mitlc_over_plain": pair,
-        "targets": checked,
-    }
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "results.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
-        print(f"\nwritten: {args.out / 'results.json'}")
 
 
 if __name__ == "__main__":
