@@ -90,11 +90,12 @@ bench-sb3: $(STAMP)
 	$(BIN)/python bench/sb3_bench.py --world specs/continuous/case1.yaml --episodes 10000 --set dqn.num_envs=32 --set dqn.target_update=25
 
 # Env worlds side by side (issue 24): plain SB3 (state one-hot, pass/fail reward) beside mitlc's
-# observation and shaping at the same env steps, 3 seeds each, on MiniGrid DoorKey, PointMaze,
-# the continuous cases 1 and 2 and the paper's case 2 (with mitlc's tabular Q against its 120 s),
-# IQM across tasks and the issue's targets. Hours on a CPU, over several sittings: Ctrl-C stops
-# it, the same command goes on, and each finished run keeps its record in bench/results/envs
-# (in git), so runs finished on another machine count (--steps-scale 0.1 for a quick look).
+# observation and shaping at the same env steps, 3 seeds each, on MiniGrid DoorKey and Empty,
+# PointMaze, the continuous cases 1 and 2 and the paper's case 2 (with mitlc's tabular Q against
+# its 120 s), IQM across tasks and the issue's targets. Hours on a CPU, over several sittings:
+# Ctrl-C stops it, the same command goes on, and each finished run keeps its record in
+# bench/results/envs (in git), so runs finished on another machine count (--steps-scale 0.1 for
+# a quick look; bench/envs_bench.py --report prints the records' tables).
 bench-envs: $(STAMP)
 	$(BIN)/python bench/envs_bench.py --out build/bench-envs --jobs $(shell nproc)
 

@@ -1,6 +1,6 @@
 """Plain SB3 beside mitlc's observation and shaping on env worlds (issue 24), over several seeds.
 
-    .venv/bin/python bench/envs_bench.py [--tasks doorkey,pointmaze,case1c,case2c,case2]
+    .venv/bin/python bench/envs_bench.py [--tasks doorkey,empty,pointmaze,case1c,case2c,case2]
         [--arms plain,mitlc,...] [--seeds 0,1,2] [--steps-scale 1] [--episodes N] [--out DIR]
         [--jobs 1] [--device D] [--record DIR | --no-record] [--report] [--progress-every S]
 

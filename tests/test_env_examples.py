@@ -20,6 +20,7 @@ EXAMPLES = {
     # file: (the package it imports, settings for a tiny run, eval episodes)
     "cliffwalking.yaml": (None, ["q.episodes=300"], 200),
     "minigrid-doorkey.yaml": ("minigrid", ["sb3.steps=256", "sb3.n_steps=32"], 3),
+    "minigrid-empty.yaml": ("minigrid", ["sb3.steps=256", "sb3.n_steps=32"], 3),
     "highway.yaml": ("highway_env", ["dqn.episodes=2", "dqn.warmup_steps=16"], 2),
     "pointmaze.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
 }
@@ -49,3 +50,7 @@ def test_each_example_trains_evaluates_and_plots_from_its_file(name: str, tmp_pa
     plotted = runner.invoke(app, ["plot", str(out)])
     assert plotted.exit_code == 0, plotted.output
     assert (out / "learning_curve.png").stat().st_size > 1000
+
+
+def test_every_shipped_example_is_driven_here() -> None:
+    assert {path.name for path in ENVS.glob("*.yaml")} == set(EXAMPLES)
