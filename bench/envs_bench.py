@@ -206,12 +206,13 @@ def recorded(run: Run, args: argparse.Namespace) -> dict[str, Any] | None:
 
 
 def keep(run: Run, record: dict[str, Any], args: argparse.Namespace) -> None:
-    """Write ``run``'s record to ``--record`` (atomically), with the commit that made it."""
+    """Write ``run``'s record to ``--record`` (atomically), with the commit that made it: the
+    record's own where it names one (a run finished in an earlier sitting), else this bench's."""
     if args.record is None:
         return
     args.record.mkdir(parents=True, exist_ok=True)
     path = record_file(run, args.record)
-    text = json.dumps({**record, **args.provenance}, indent=2, sort_keys=True) + "\n"
+    text = json.dumps({**args.provenance, **record}, indent=2, sort_keys=True) + "\n"
     with tempfile.NamedTemporaryFile("w", dir=args.record, delete=False, encoding="utf-8",
                                      suffix=".tmp") as out:  # fmt: skip
         out.write(text)
@@ -337,6 +338,7 @@ def execute(run: Run, index: int, total: int, args: argparse.Namespace) -> None:
         "command": trained["command"],
         "notes": trained["notes"],
         "lower": report.get("lower"),
+        **args.provenance,  # the commit that made it, kept with it
     }
     (run.directory / "result.json").write_text(json.dumps(run.result, indent=2), encoding="utf-8")
     keep(run, run.result, args)

@@ -59,6 +59,8 @@ def test_a_record_of_the_same_command_counts_elsewhere(
         bench.command(run, 1.0, None, False)
     )
     assert bench.recorded(run, args)["success_rate"] == 0.5
+    bench.keep(run, {**saved, "commit": "older"}, args)  # finished in an earlier sitting
+    assert bench.recorded(run, args)["commit"] == "older"
 
     def no(*_: Any) -> Any:
         raise AssertionError("a recorded run was run again")
