@@ -120,7 +120,9 @@ def test_the_device_may_change_on_resume_and_a_run_reads_back_anywhere(
     world: Path, algo: str, tmp_path: Path
 ) -> None:
     """A run resumed with another device (auto here, cpu before) ends as the uninterrupted
-    one; a run whose config.json says cuda is read back on this CPU machine (eval, plot)."""
+    one; a run whose config.json says cuda is read back on this CPU machine (eval, plot).
+    Where auto is a GPU the two devices' arithmetic differs in the last bits, so the weights
+    are compared only where auto is the CPU (``test_cuda`` has the GPU's side)."""
     config = tiny(algo, 60)
     whole = train(world, config, tmp_path / "whole")
     calls = iter(range(10**6))
@@ -129,12 +131,14 @@ def test_the_device_may_change_on_resume_and_a_run_reads_back_anywhere(
     assert stopped.stopped
     resumed = train(world, config, tmp_path / "cut", resume=True)
     assert (resumed.episodes, resumed.steps) == (whole.episodes, whole.steps)
-    assert same_weights(weights(tmp_path / "cut"), weights(tmp_path / "whole"))
+    if not torch.cuda.is_available():
+        assert same_weights(weights(tmp_path / "cut"), weights(tmp_path / "whole"))
     saved = json.loads((tmp_path / "cut" / "config.json").read_text())
     saved["train"]["device"] = "cuda"
     (tmp_path / "cut" / "config.json").write_text(json.dumps(saved))
     _, learner = load_learner(tmp_path / "cut")
-    assert isinstance(learner, DQNLearner | DRQNLearner) and learner.device.type == "cpu"
+    here = "cuda" if torch.cuda.is_available() else "cpu"  # this machine's device, not the run's
+    assert isinstance(learner, DQNLearner | DRQNLearner) and learner.device.type == here
 
 
 @pytest.mark.parametrize(("world", "algo"), [(CASE1, "dqn"), (CASE3, "drqn")], ids=label)
