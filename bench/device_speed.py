@@ -18,16 +18,9 @@ from mitlc.learn.config import config_for
 from mitlc.learn.run import train
 
 ROOT = Path(__file__).resolve().parents[1]
-PENDULUM = """
-name: pendulum-up
-env: {id: Pendulum-v1}
-labels:
-  up: {box: {index: [0], low: [0.9], high: [1.0]}}
-spec: {formula: "F[0,40] up"}
-horizon: 50
-discount: 0.99
-reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
-"""
+sys.path.insert(0, str(ROOT))
+from tests.open_envs import PENDULUM  # noqa: E402 - the tests' Pendulum world
+
 RUNS = [  # (world, algo, the budget's setting)
     ("specs/paper/case1.yaml", "dqn", {"episodes": 300}),
     ("specs/paper/case3-office.yaml", "drqn", {"episodes": 200}),

@@ -11,6 +11,18 @@ import numpy as np
 from gymnasium import spaces
 
 LENGTH = 6
+PENDULUM = """
+name: pendulum-up
+env: {id: Pendulum-v1}
+labels:
+  up: {box: {index: [0], low: [0.9], high: [1.0]}}
+spec: {formula: "F[0,40] up"}
+horizon: 50
+discount: 0.99
+reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
+"""
+"""A world file of gymnasium's Pendulum: swing it up (cos of its angle above 0.9) within 40
+steps; Box(-2, 2, (1,)) actions, a Box observation."""
 
 
 class Chain(gym.Env[Any, int]):

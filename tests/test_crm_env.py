@@ -37,6 +37,7 @@ from mitlc.learn.learners.dqn import DQNLearner
 from mitlc.learn.learners.encoder import Encoder
 from mitlc.task import MonitorState, TaskMonitor
 from mitlc.worlds.model import Rewards
+from tests.open_envs import PENDULUM
 
 SPEC = "!a U[0,3] (a & F[0,2] b)"
 LABELS = {"a": {"obs": [1]}, "b": {"obs": [2]}}
@@ -235,16 +236,6 @@ def test_a_dqn_run_with_counterfactuals_on_an_env_world_trains_and_evaluates(
 
 # --- SB3's replay ------------------------------------------------------------------------------
 
-PENDULUM = """
-name: pendulum-up
-env: {id: Pendulum-v1}
-labels:
-  up: {box: {index: [0], low: [0.9], high: [1.0]}}
-spec: {formula: "F[0,40] up"}
-horizon: 50
-discount: 0.99
-reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
-"""
 TINY = {"sb3.batch_size": 32, "sb3.learning_starts": 50, "sb3.buffer_size": 50_000,
         "sb3.hidden": 16, "sb3.crm": True}  # fmt: skip
 LETTERS = {  # the letter of a flat observation's env part, and that part's width

@@ -24,20 +24,11 @@ from mitlc.learn.device import resolve_device  # noqa: E402
 from mitlc.learn.learners.dqn import DQNLearner  # noqa: E402
 from mitlc.learn.learners.drqn import DRQNLearner  # noqa: E402
 from mitlc.learn.rundir import checkpoint  # noqa: E402
+from tests.open_envs import PENDULUM  # noqa: E402
 from tests.test_deep import CASE1, CASE3, greedy_rollout, tiny  # noqa: E402
 from tests.test_envvec import CORRIDOR  # noqa: E402
 
 runner = CliRunner()
-PENDULUM = """
-name: pendulum-up
-env: {id: Pendulum-v1}
-labels:
-  up: {box: {index: [0], low: [0.9], high: [1.0]}}
-spec: {formula: "F[0,40] up"}
-horizon: 50
-discount: 0.99
-reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
-"""
 TINY_SB3 = {
     "sb3-dqn": ["sb3.learning_starts=64", "sb3.buffer_size=2000", "sb3.target_update_interval=100"],
     "sb3-ppo": ["sb3.n_steps=128", "sb3.batch_size=64", "sb3.n_epochs=2"],

@@ -22,21 +22,10 @@ from mitlc.learn.backends.sb3 import ModelState
 from mitlc.learn.device import DeviceError, resolve_device
 from mitlc.learn.rundir import checkpoint
 from tests.conftest import ROOT
+from tests.open_envs import PENDULUM
 
 runner = CliRunner()
 CASE1 = str(ROOT / "specs" / "paper" / "case1.yaml")
-PENDULUM = """
-name: pendulum-up
-env: {id: Pendulum-v1}
-labels:
-  up: {box: {index: [0], low: [0.9], high: [1.0]}}
-spec: {formula: "F[0,40] up"}
-horizon: 50
-discount: 0.99
-reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
-"""
-"""Swing the pendulum up (cos of its angle above 0.9) within 40 steps: Box(-2, 2, (1,))
-actions, a Box observation."""
 TINY = ["sb3.batch_size=32", "sb3.learning_starts=50", "sb3.buffer_size=1000", "sb3.hidden=16"]
 PARTS = {  # what each checkpoint holds besides the settings, the policy and the counters
     "sb3-sac": {"actor_optimizer", "critic_optimizer", "ent_coef_optimizer", "log_ent_coef"},
