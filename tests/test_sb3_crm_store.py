@@ -123,3 +123,79 @@ def test_sb3_crm_limit_bounds_the_counterfactuals_of_a_step(tmp_path: Any, limit
     memory.add = counted  # type: ignore[method-assign]
     model.learn(120)
     assert len(made) == 120 and set(made) <= {0, limit} and made.count(limit) > 100
+
+
+def mixed_memory(share: float, lived: int, made: int, seed: int = 1) -> CounterfactualReplay:
+    """A memory of 2 envs holding ``lived`` rows put in by SB3's own ``add`` (reward 1), then
+    ``made`` counterfactual rows (reward -1); each cell's first observation value is its
+    number (row * 2 + env)."""
+    task = pendulum_task()
+    space, n = task.view.space, 2
+    action = gym.spaces.Box(-2.0, 2.0, (1,), np.float32)
+    memory = CounterfactualReplay((lived + made) * n, space, action, "cpu", n, task=task, seed=seed,
+                                  share=share)  # fmt: skip
+    rows = random_rows(np.random.default_rng(0), (lived + made) * n, gym.spaces.flatdim(space))
+    rows["obs"][:, 0] = np.arange((lived + made) * n)
+    rows["reward"][:] = np.repeat([1.0, -1.0], [lived * n, made * n])
+    for r in range(lived):
+        part = {k: v[r * n : (r + 1) * n] for k, v in rows.items()}
+        ReplayBuffer.add(memory, part["obs"], part["next_obs"], part["action"], part["reward"],
+                         part["done"], [{}] * n)  # fmt: skip
+    memory.store_rows({k: v[lived * n :] for k, v in rows.items()})
+    assert memory.counterfactual.sum() == made * n
+    return memory
+
+
+def same_batch(a: Any, b: Any) -> bool:
+    """Whether two SB3 batches hold the same tensors (its fields left None alike)."""
+    return all(
+        (x is None and y is None) or np.array_equal(x.numpy(), y.numpy())
+        for x, y in zip(a, b, strict=True)
+    )
+
+
+def test_a_share_fixes_the_mix_of_each_batch_and_each_kind_is_drawn_uniformly() -> None:
+    """``sb3.crm_share``: 10 lived rows and 40 counterfactual ones; a batch of 64 at share 0.25
+    holds 16 counterfactual transitions and 48 lived ones, whatever the memory's proportions.
+    Over 400 batches every cell of each kind turns up about equally often; the same seed
+    draws the same batches."""
+    memory = mixed_memory(0.25, lived=10, made=40)
+    seen = np.zeros(100, dtype=np.int64)
+    for _ in range(400):
+        batch = memory.sample(64)
+        rewards = batch.rewards.numpy().ravel()
+        assert (rewards == -1).sum() == 16 and (rewards == 1).sum() == 48
+        cells = batch.observations.numpy()[:, 0].astype(np.int64)
+        assert np.array_equal(rewards, np.where(cells < 20, 1.0, -1.0))  # the cell's own row
+        np.add.at(seen, cells, 1)
+    lived, made = seen[:20], seen[20:]
+    assert lived.sum() == 400 * 48 and made.sum() == 400 * 16
+    assert lived.min() > 0.8 * lived.mean() and lived.max() < 1.2 * lived.mean()
+    assert made.min() > 0.6 * made.mean() and made.max() < 1.4 * made.mean()
+    first, again = mixed_memory(0.25, 10, 40, seed=5), mixed_memory(0.25, 10, 40, seed=5)
+    for _ in range(5):
+        assert same_batch(first.sample(32), again.sample(32))
+
+
+@pytest.mark.parametrize(("lived", "made"), [(6, 0), (0, 6)])
+def test_a_share_takes_the_one_kind_a_memory_holds(lived: int, made: int) -> None:
+    memory = mixed_memory(0.5, lived=lived, made=made)
+    rewards = memory.sample(40).rewards.numpy().ravel()
+    assert len(rewards) == 40 and set(rewards.tolist()) == {1.0 if lived else -1.0}
+
+
+def test_no_share_is_sb3s_own_uniform_sample() -> None:
+    """Share 0: the batch SB3's ``ReplayBuffer.sample`` draws (numpy's global generator) from
+    the same contents."""
+    memory = mixed_memory(0.0, lived=10, made=40)
+    reference = ReplayBuffer(memory.buffer_size * memory.n_envs, memory.observation_space,
+                             memory.action_space, "cpu", memory.n_envs)  # fmt: skip
+    for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
+        setattr(reference, name, getattr(memory, name).copy())
+    reference.pos, reference.full = memory.pos, memory.full
+    for _ in range(3):
+        np.random.seed(11)
+        ours = memory.sample(32)
+        np.random.seed(11)
+        theirs = reference.sample(32)
+        assert same_batch(ours, theirs)

@@ -160,18 +160,23 @@ def test_a_run_resumed_without_its_memory_refills_it(
     assert model["counters"]["n_updates"] == 160
 
 
+@pytest.mark.parametrize("share", ["0", "0.5"])
 def test_a_resumed_run_with_counterfactuals_goes_on_with_its_memory(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, share: str
 ) -> None:
     """``sb3.crm``: the memory the resumed SAC starts from is the checkpoint's (its rows, which
-    of them are counterfactual, their count), and it learns from its first step."""
+    of them are counterfactual, their count), and it learns from its first step; with
+    ``sb3.crm_share`` too."""
     from mitlc.learn.backends.sb3 import ModelState
     from tests.test_sb3_continuous import PENDULUM
 
     world = tmp_path / "pendulum.yaml"
     world.write_text(PENDULUM)
     out = tmp_path / "run"
-    assert train(world, out, "sb3-sac", 150, "sb3.crm=true", "sb3.crm_limit=2").exit_code == 0
+    shared = f"sb3.crm_share={share}"
+    assert (
+        train(world, out, "sb3-sac", 150, "sb3.crm=true", "sb3.crm_limit=2", shared).exit_code == 0
+    )
     saved = checkpoint.load(out).state["model"]["replay"]
     flags = saved["arrays"]["counterfactual"]
     assert saved["kept"] and saved["made"] > 0 and int(flags.sum()) == saved["made"]

@@ -261,6 +261,7 @@ TRAINING: dict[str, Bound] = {
     "sb3.crm_limit": Bound(1, 4096, (
         "transitions made and stored each env step: 4,096 a step fill SB3's largest memory "
         "(1,000,000) in 245 steps")),
+    "sb3.crm_share": Bound(0, 1, _UNIT_WHY),
 }
 """Every numeric training setting by its path within ``training``."""
 

@@ -223,6 +223,10 @@ class SB3Config:
     sample of the task states where there are more, :mod:`mitlc.learn.learners.crm_env`). The
     gradient steps do not grow with them, so more dilute what the agent lived (on PointMaze,
     the more a step, the later the first success: ``docs/deadlines.md``)."""
+    crm_share: float = 0.0
+    """With ``crm``: the share of each sampled batch that is counterfactual, the rest lived
+    (:meth:`mitlc.learn.backends.sb3_crm.CounterfactualReplay.sample`); 0: SB3's uniform sample
+    over the memory."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -158,6 +158,7 @@ class CounterfactualReplay(ReplayBuffer):
         seed: int = 0,
         shaping: float = 0.0,
         gamma: float = 1.0,
+        share: float = 0.0,
     ) -> None:
         if optimize_memory_usage:
             raise CounterfactualError("sb3.crm: each transition needs its own next observation, "
@@ -167,6 +168,9 @@ class CounterfactualReplay(ReplayBuffer):
         self.task, self.rng = task, np.random.default_rng(seed)
         self.shaping, self.gamma = shaping, gamma
         """The scale of the shaping potential (0: none) and the discount it is shaped at."""
+        self.share = share
+        """The share of each sampled batch that is counterfactual (``sb3.crm_share``; 0: SB3's
+        uniform sample over the whole memory, see :meth:`sample`)."""
         self.counterfactual = np.zeros((self.buffer_size, self.n_envs), dtype=np.bool_)
         """Which stored transitions are counterfactual."""
         self.made = 0
@@ -198,6 +202,51 @@ class CounterfactualReplay(ReplayBuffer):
         if whole:
             self.store_rows({k: v[:whole] for k, v in self._queue.items()})
             self._queue = {k: v[whole:] for k, v in self._queue.items()}
+
+    def sample(self, batch_size: int, env: Any = None) -> Any:
+        """A batch for a gradient step. With no :attr:`share`, SB3's: uniform over the
+        transitions held, so with ``k`` counterfactuals a step one in ``k + 1`` was lived.
+        With a share ``p``, a fixed mix, as SB3's HER fixes its share of relabelled goals:
+        ``round(p * batch_size)`` transitions uniform among the counterfactual ones held and the
+        rest uniform among the lived ones (all of one kind while the memory holds no other),
+        drawn from the memory's own generator, which its checkpoint keeps."""
+        if not self.share:
+            return super().sample(batch_size, env=env)
+        upper = self.buffer_size if self.full else self.pos
+        flags = self.counterfactual[:upper].reshape(-1)
+        made = int(np.count_nonzero(flags))
+        lived = flags.size - made
+        wanted = round(self.share * batch_size) if made and lived else batch_size * (made > 0)
+        cells = np.concatenate([self._draw(flags, True, made, wanted),
+                                self._draw(flags, False, lived, batch_size - wanted)])  # fmt: skip
+        rows, envs = np.divmod(cells, self.n_envs)
+        return self._samples_at(rows, envs, env)
+
+    def _draw(self, flags: BoolArray, kind: bool, held: int, count: int) -> IntArray:
+        """``count`` cells (row * n_envs + env) drawn uniformly, with replacement, among those
+        whose flag is ``kind`` (``held`` of them): uniform draws over all cells, the others
+        left out, until there are enough."""
+        drawn = np.zeros(0, dtype=np.int64)
+        while len(drawn) < count:
+            tries = int((count - len(drawn)) * flags.size / held * 1.25) + 8
+            candidates = self.rng.integers(flags.size, size=tries)
+            drawn = np.concatenate([drawn, candidates[flags[candidates] == kind]])
+        return drawn[:count]
+
+    def _samples_at(self, rows: IntArray, envs: IntArray, env: Any) -> Any:
+        """SB3's ``ReplayBuffer._get_samples`` at the given rows and envs (SB3 draws the envs
+        itself), for a memory without ``optimize_memory_usage``."""
+        from stable_baselines3.common.type_aliases import ReplayBufferSamples
+
+        live = (self.dones[rows, envs] * (1 - self.timeouts[rows, envs])).reshape(-1, 1)
+        data = (
+            self._normalize_obs(self.observations[rows, envs, :], env),
+            self.actions[rows, envs, :],
+            self._normalize_obs(self.next_observations[rows, envs, :], env),
+            live,
+            self._normalize_reward(self.rewards[rows, envs].reshape(-1, 1), env),
+        )
+        return ReplayBufferSamples(*tuple(map(self.to_torch, data)))
 
     def store_rows(self, rows: dict[str, npt.NDArray[Any]]) -> None:
         """Store counterfactual transitions (the fields of :data:`FIELDS`, a whole number of
@@ -295,5 +344,5 @@ def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
     except CounterfactualError as err:
         raise RunError(f"sb3.crm: {err}") from None
     kwargs = {"task": task, "seed": config.seed, "shaping": config.shaping,
-              "gamma": config.discount.gamma}  # fmt: skip
+              "gamma": config.discount.gamma, "share": config.sb3.crm_share}  # fmt: skip
     return {"replay_buffer_class": CounterfactualReplay, "replay_buffer_kwargs": kwargs}
