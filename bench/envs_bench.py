@@ -14,9 +14,10 @@ learned by two arms (:data:`ARMS`) at the same budget and seeds:
 
 Two tasks have a third arm. PointMaze (SAC, the one off-policy learner here) has
 ``mitlc-crm``: the ``mitlc`` arm with counterfactual experience in SAC's replay
-(``sb3.crm=true``); it is not in the ``mitlc`` arm because it held PointMaze's first success
-back (``docs/deadlines.md``). A run whose ``crm`` the learner refuses (e.g. a lazy automaton's
-task) is run again without it, and the table says so. The paper's case 2 has ``mitlc-q``:
+(``sb3.crm=true``, half of each batch: ``sb3.crm_share=0.5``); it is not in the ``mitlc`` arm
+because it held PointMaze's first success back (``docs/deadlines.md``). A run whose ``crm``
+the learner refuses (e.g. a lazy automaton's task) is run again without it, and the table
+says so. The paper's case 2 has ``mitlc-q``:
 mitlc's tabular Q-learning on what the agent sees (``--algo q --episodes 200000 --set
 shaping=1``: the observation, the automaton state and the frontier), timed against issue 24's
 120 s.

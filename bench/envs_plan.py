@@ -65,7 +65,8 @@ TASKS = (
     # Half the 300,000 steps (within its target), as the world file trains: SAC is
     # about 125 env steps/s here, so a run is about 20 minutes.
     Task("pointmaze", "specs/envs/pointmaze.yaml", "sb3-sac", 150_000, eval_episodes=ENV_EVAL,
-         extra_arms=(Arm("mitlc-crm", ("task_obs=clocks", "shaping=1"), crm=True),)),
+         extra_arms=(Arm("mitlc-crm", ("task_obs=clocks", "shaping=1", "sb3.crm_share=0.5"),
+                         crm=True),)),
     Task("case1c", "specs/continuous/case1.yaml", "sb3-ppo", 150_000),
     Task("case2c", "specs/continuous/case2.yaml", "sb3-recurrent-ppo", 150_000),
     Task("case2", "specs/paper/case2.yaml", "sb3-recurrent-ppo", 150_000,
