@@ -50,22 +50,34 @@ def markdown(table: Records, seeds: int) -> list[str]:
     return lines
 
 
+def complete(table: Records) -> list[str]:
+    """The tasks with a record of every arm of :data:`ARMS` for some seed they share: those
+    the IQM is taken over (so a task still to run leaves it, rather than emptying it)."""
+    found = []
+    for task, arms in table.items():
+        seeds = [{r["seed"] for r in arms.get(arm.name, [])} for arm in ARMS]
+        if set.intersection(*seeds):
+            found.append(task)
+    return found
+
+
 def aggregate(table: Records, reps: int) -> tuple[dict[str, Any], list[float] | None]:
-    """Per arm of :data:`ARMS`: rliable's IQM of the success (seeds x tasks, over the seeds
-    every task has) with its 95% stratified bootstrap interval, and the other statistics of
+    """Per arm of :data:`ARMS`: rliable's IQM of the success (seeds x tasks, over the
+    :func:`complete` tasks and the seeds every arm has on all of them, so that the arms are
+    paired) with its 95% stratified bootstrap interval, and the other statistics of
     :func:`mitlc.sweep.report.interval_estimates`; and P(mitlc > plain) with its interval."""
     from mitlc.sweep.report import improvement, interval_estimates
 
+    tasks = complete(table)
+    success = {(t, arm.name): {r["seed"]: r["success_rate"] for r in table[t].get(arm.name, [])}
+               for t in tasks for arm in ARMS}  # fmt: skip
+    seeds = sorted(set.intersection(*map(set, success.values()))) if tasks else []
     scores: dict[str, np.ndarray[Any, Any]] = {}
-    for arm in ARMS:
-        by_task = {t: {r["seed"]: r["success_rate"] for r in a.get(arm.name, [])}
-                   for t, a in table.items()}  # fmt: skip
-        seeds = sorted(set.intersection(*(set(s) for s in by_task.values())))
-        if seeds:
-            scores[arm.name] = np.array([[by_task[t][s] for t in by_task] for s in seeds])
+    for arm in ARMS if seeds else ():
+        scores[arm.name] = np.array([[success[t, arm.name][s] for t in tasks] for s in seeds])
     estimates = interval_estimates(scores, reps=reps, seed=0) if scores else {}
     result = {
-        name: {"seeds": int(scores[name].shape[0]), "tasks": list(table), **estimates[name]}
+        name: {"seeds": int(scores[name].shape[0]), "tasks": tasks, **estimates[name]}
         for name in scores
     }
     both = [scores.get(arm.name) for arm in ARMS]
@@ -114,7 +126,11 @@ def report(runs: list[Run], tasks: list[Task], seeds: list[int], args: argparse.
         for note in run.result["notes"] if run.result else []:
             print(f"note: {run.label}: {note}")
     iqm, pair = aggregate(table, args.reps)
-    print(f"\nIQM of the greedy success across {', '.join(table)} (95% stratified bootstrap):")
+    left = [t for t in table if t not in complete(table)]
+    print(
+        f"\nIQM of the greedy success across {', '.join(complete(table)) or 'no task'} "
+        "(95% stratified bootstrap)" + (f"; not yet: {', '.join(left)}" if left else "") + ":"
+    )
     for name, stats in iqm.items():
         point, low, high = stats["iqm"]
         print(f"  {name:6} {point:.3f} [{low:.3f}, {high:.3f}]  ({stats['seeds']} seeds)")

@@ -126,3 +126,32 @@ def test_the_report_is_made_of_the_records_alone(bench: Any, tmp_path: Path) -> 
     assert "PASS DoorKey-5x5 >= 0.9" in out
     assert "NOT MEASURED PointMaze_UMaze >= 0.9 within 300,000 steps: 3 of 3 runs missing" in out
     assert not (tmp_path / "x").exists()
+
+
+def test_the_iqm_is_over_the_tasks_and_seeds_every_arm_has(bench: Any, tmp_path: Path) -> None:
+    """A task with an arm still to run leaves the IQM (and is named), and a seed that one arm
+    lacks leaves it too, so that the arms stay paired: P(mitlc > plain) is printed."""
+    import subprocess
+
+    args = options(tmp_path / "records")
+    given = {("doorkey", "plain"): (0, 1), ("doorkey", "mitlc"): (0, 1, 2),
+             ("pointmaze", "mitlc"): (0, 1, 2)}  # fmt: skip
+    for (task, arm), seeds in given.items():
+        for seed in seeds:
+            run = next(r for r in bench.plan(list(bench.TASKS), [seed], tmp_path / "x")
+                       if r.label == f"{task} {arm} s{seed}")  # fmt: skip
+            record = record_of(bench, run, args, "py")
+            success = 0.2 * seed if arm == "plain" else 0.9
+            record.update(algo="sb3", success_rate=success, interval95=[0.0, 1.0], steps=1,
+                          wall_s=1.0)  # fmt: skip
+            bench.keep(run, record, args)
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "envs_bench.py"), "--report", "--record",
+         str(tmp_path / "records"), "--tasks", "doorkey,pointmaze", "--arms", "plain,mitlc",
+         "--reps", "200"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    out = done.stdout
+    assert "across doorkey (95% stratified bootstrap); not yet: pointmaze:" in out
+    assert "plain  0.100 [" in out and "(2 seeds)" in out and "mitlc  0.900 [" in out
+    assert "P(mitlc > plain) 1.000" in out
