@@ -253,3 +253,20 @@ def test_pomdp_evaluation_brackets_the_optimum(tmp_path: Path) -> None:
     data = report.summary()
     assert data["lower_bound"] == report.lower
     assert data["lower_ratio"] == pytest.approx(report.success_rate / report.lower)
+
+
+@pytest.mark.parametrize(
+    ("algo", "device", "told"),
+    [("dqn", "auto", True), ("sb3-ppo", "auto", True), ("dqn", "cpu", False), ("q", "auto", False)],
+)
+def test_a_network_that_auto_puts_on_cuda_is_told_the_cpu_may_be_quicker(
+    algo: str, device: str, told: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where torch sees CUDA (made so here), ``train`` notes that the CPU may be quicker for a
+    deep run on ``auto``; not for one given ``cpu``, nor for tabular Q."""
+    from mitlc.learn.run import prepare
+    from mitlc.learn.setting import SMALL_NETWORKS_ON_CUDA, setting_notes
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    config = dataclasses.replace(tiny("dqn", 10), algo=algo, device=device)
+    assert (SMALL_NETWORKS_ON_CUDA in setting_notes(prepare(CASE1, config))) == told

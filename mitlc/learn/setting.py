@@ -164,12 +164,30 @@ def _shielded(
     return replace(simulated, shield=made, shield_enforced=not config.shield_audit)
 
 
+SMALL_NETWORKS_ON_CUDA = (
+    "note: --device auto trains on CUDA here; mitlc's networks are small, and on an H200 the "
+    "CPU trained every shipped learner as fast or up to 2.6 times faster: --device cpu may be "
+    "quicker (docs/deadlines.md, 'On a GPU')"
+)
+"""The note of a deep run that ``auto`` puts on CUDA (measured by ``bench/device_speed.py``)."""
+
+
 def setting_notes(setting: Setting) -> list[str]:
     """One-line notes on a run's setting: a horizon shorter than the task needs to be decided
-    (:func:`mitlc.task.horizon.short_horizon_note`)."""
+    (:func:`mitlc.task.horizon.short_horizon_note`); a network that ``--device auto`` puts on
+    CUDA (:data:`SMALL_NETWORKS_ON_CUDA`)."""
     world = setting.world
     note = short_horizon_note(parse(world.spec, world.spec_source), world.horizon)
-    return [] if note is None else [note]
+    notes = [] if note is None else [note]
+    config = setting.config
+    if config.algo != "q" and config.device == "auto":
+        try:
+            import torch
+        except ImportError:  # the run refuses itself: its learner needs torch
+            return notes
+        if torch.cuda.is_available():
+            notes.append(SMALL_NETWORKS_ON_CUDA)
+    return notes
 
 
 def task_vector_of(setting: Setting, num_envs: int, seed: int, *, flatten: bool = False) -> Any:
