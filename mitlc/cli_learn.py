@@ -7,7 +7,8 @@ app by :mod:`mitlc.cli`, which owns error reporting)."""
 
 import json
 import signal
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Annotated, Any
@@ -100,6 +101,34 @@ def _progress_display(quiet: bool) -> Any:
         disable=quiet,
         transient=False,
     )
+
+
+@contextmanager
+def _evaluation_bar() -> Iterator[Callable[[int, int], None] | None]:
+    """A bar of the evaluation's episodes on stderr, where stderr is a terminal (else none:
+    a log or a pipe, and ``--json`` read from stdout, get no bar)."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        yield None
+        return
+    columns = (TextColumn("[bold]eval"), BarColumn(bar_width=12), MofNCompleteColumn(),
+               TimeElapsedColumn())  # fmt: skip
+    with Progress(*columns, console=console, transient=True) as bar:
+        task = bar.add_task("eval", total=None)
+
+        def show(ended: int, total: int) -> None:
+            bar.update(task, completed=ended, total=total)
+
+        yield show
 
 
 def train_command(
@@ -284,9 +313,11 @@ def _print_evaluation(
 ) -> None:
     from mitlc.learn.evaluation.evaluate import evaluate
 
-    report = evaluate(
-        directory, episodes=episodes, seed=seed, pomdp_bounds=bounds, deadline=deadline
-    )
+    with _evaluation_bar() as show:
+        report = evaluate(
+            directory, episodes=episodes, seed=seed, pomdp_bounds=bounds, deadline=deadline,
+            progress=show,
+        )  # fmt: skip
     data = report.summary()
     if as_json:
         typer.echo(json.dumps(data, indent=2, sort_keys=True))

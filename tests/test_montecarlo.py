@@ -131,6 +131,16 @@ def test_the_estimate_is_reproducible_and_independent_of_the_batch_width(gamble:
     assert monte_carlo(batches(gamble, 6), Right(), 300) != one
 
 
+def test_progress_counts_the_episodes_of_every_batch_as_they_end(gamble: Any) -> None:
+    """``progress`` is told a rising count of ended episodes across batches of 64, ending at
+    the estimate's 300; the estimate is the one made without it."""
+    told: list[int] = []
+    estimate = monte_carlo(batches(gamble, 5), Uniform(3), 300, width=64, progress=told.append)
+    assert estimate == monte_carlo(batches(gamble, 5), Uniform(3), 300, width=64)
+    assert told == sorted(told) and told[-1] == 300 and len(set(told)) == len(told) > 5
+    assert {64, 128, 192, 256} <= set(told)  # each batch's last episode ends its count
+
+
 def test_first_episodes_counts_each_slot_once(gamble: Any) -> None:
     success, returns, costs = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
     assert costs is None  # a world without costs

@@ -17,6 +17,7 @@ policy is memoryless on an MDP's product (tabular Q, DQN), its exact success pro
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -131,6 +132,7 @@ def evaluate(
     seed: int = 12345,
     pomdp_bounds: bool = False,
     deadline: Deadline | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Evaluation:
     """Evaluate the run in ``directory`` (its last checkpoint), of any world; ``episodes``
     defaults to the run's ``eval_episodes``. The Monte-Carlo estimate is the one of every world
@@ -140,14 +142,18 @@ def evaluate(
     success. ``pomdp_bounds`` asks Storm for belief bounds (slow on big worlds; needs
     stormpy). The set-up and the exact figures stop at ``deadline`` (by default
     :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds); the POMDP bounds are left out when the
-    time runs out during them."""
+    time runs out during them. ``progress`` is told the episodes ended and the episodes in all,
+    as they end."""
     start = time.perf_counter()
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "evaluation")
     setting, learner = load_learner(Path(directory), deadline=clock)
     count = episodes if episodes is not None else setting.config.eval_episodes
     policy = learner.policy()
     log = HeldLog()
-    estimate = monte_carlo(log.track(batches(setting, seed)), policy, count)
+    told = None if progress is None else (lambda ended: progress(ended, count))
+    if progress is not None:
+        progress(0, count)
+    estimate = monte_carlo(log.track(batches(setting, seed)), policy, count, progress=told)
     unseen = () if setting.finite else never_held(setting.automaton.propositions, log.held())
     optimum, exact, bounds, lower, min_cost = None, None, None, None, None
     if setting.finite:

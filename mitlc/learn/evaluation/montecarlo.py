@@ -22,6 +22,7 @@ steps all its slots at once and reports a :class:`mitlc.learn.envs.vec.Step` (``
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -81,12 +82,17 @@ class Batches(Protocol):
         ...
 
 
+Progress = Callable[[int], None]
+"""Told the episodes of the estimate that have ended so far, as they end."""
+
+
 def first_episodes(
-    batch: Episodes, policy: Policy
+    batch: Episodes, policy: Policy, progress: Progress | None = None
 ) -> tuple[BoolArray, FloatArray, FloatArray | None]:
     """Step every slot of ``batch`` with ``policy`` until each has ended an episode; the
     success, the return and (where the steps have costs) the cost of each slot's first
-    episode (later ones are not counted)."""
+    episode (later ones are not counted). ``progress`` is told how many slots have ended,
+    after each step that ends one."""
     n = batch.num_envs
     policy.reset(n)
     ended = np.zeros(n, dtype=np.bool_)
@@ -104,18 +110,29 @@ def first_episodes(
             costs = np.zeros(n) if costs is None else costs
             costs[first] = paid[first]
         ended |= step.done
+        if progress is not None and first.any():
+            progress(int(ended.sum()))
     return success, returns, costs
 
 
-def monte_carlo(batches: Batches, policy: Policy, episodes: int, *, width: int = WIDTH) -> Estimate:
+def monte_carlo(
+    batches: Batches,
+    policy: Policy,
+    episodes: int,
+    *,
+    width: int = WIDTH,
+    progress: Progress | None = None,
+) -> Estimate:
     """The success of ``policy`` over ``episodes`` independent episodes, each slot's first
-    (see the module docstring), ``width`` slots at a time."""
+    (see the module docstring), ``width`` slots at a time; ``progress`` is told how many of
+    the ``episodes`` have ended, as they end."""
     if width < 1:
         raise ValueError(f"width: expected a positive integer, got {width}")
     successes, total, cost = 0, 0.0, None
     for first in range(0, episodes, width):
+        told = None if progress is None else _offset(progress, first)
         success, returns, costs = first_episodes(
-            batches(min(width, episodes - first), first), policy
+            batches(min(width, episodes - first), first), policy, told
         )
         successes += int(success.sum())
         total += float(returns.sum())
@@ -124,3 +141,8 @@ def monte_carlo(batches: Batches, policy: Policy, episodes: int, *, width: int =
     count = max(episodes, 1)
     mean_cost = None if cost is None else cost / count
     return Estimate(successes, max(episodes, 0), total / count if episodes > 0 else 0.0, mean_cost)
+
+
+def _offset(progress: Progress, first: int) -> Progress:
+    """``progress`` told a batch's ended slots as episodes of the whole estimate."""
+    return lambda ended: progress(first + ended)
