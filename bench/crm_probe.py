@@ -12,7 +12,6 @@ training success of the last window, per setting and seed. For the question of
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import signal
 import subprocess
@@ -20,18 +19,16 @@ import sys
 import time
 from pathlib import Path
 
+from mitlc.learn.rundir.files import read_metrics_rows
+
 
 def first_success(metrics: Path) -> tuple[int | None, int, float]:
     """The steps of the first window with a success (None: none), the steps reached and the
-    last window's training success."""
+    last window's training success (the run's ``metrics.jsonl``, read as mitlc reads it)."""
     first, steps, last = None, 0, 0.0
     if not metrics.is_file():
         return first, steps, last
-    for line in metrics.read_text(encoding="utf-8").splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:  # a line cut by the stop
-            continue
+    for row in read_metrics_rows(metrics):
         steps, last = int(row["steps"]), float(row["success_rate"])
         if first is None and last > 0:
             first = steps

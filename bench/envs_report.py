@@ -126,9 +126,10 @@ def report(runs: list[Run], tasks: list[Task], seeds: list[int], args: argparse.
         for note in run.result["notes"] if run.result else []:
             print(f"note: {run.label}: {note}")
     iqm, pair = aggregate(table, args.reps)
-    left = [t for t in table if t not in complete(table)]
+    counted = complete(table)
+    left = [t for t in table if t not in counted]
     print(
-        f"\nIQM of the greedy success across {', '.join(complete(table)) or 'no task'} "
+        f"\nIQM of the greedy success across {', '.join(counted) or 'no task'} "
         "(95% stratified bootstrap)" + (f"; not yet: {', '.join(left)}" if left else "") + ":"
     )
     for name, stats in iqm.items():

@@ -181,12 +181,13 @@ def setting_notes(setting: Setting) -> list[str]:
     notes = [] if note is None else [note]
     config = setting.config
     if config.algo != "q" and config.device == "auto":
+        from mitlc.learn.device import DeviceError, resolve_device
+
         try:
-            import torch
-        except ImportError:  # the run refuses itself: its learner needs torch
-            return notes
-        if torch.cuda.is_available():
-            notes.append(SMALL_NETWORKS_ON_CUDA)
+            if resolve_device("auto").type == "cuda":
+                notes.append(SMALL_NETWORKS_ON_CUDA)
+        except DeviceError:  # no torch: the run refuses itself, its learner needs it
+            pass
     return notes
 
 
