@@ -65,6 +65,7 @@ import argparse
 import dataclasses
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -108,6 +109,20 @@ def stop_on_signals() -> None:
     signal.signal(signal.SIGTERM, handler)
 
 
+CRM_REFUSAL = re.compile(r"^(?:[a-z0-9_]+\.)?crm\b")
+
+
+def crm_refusal(returncode: int, stderr: str) -> str | None:
+    """mitlc's one-line refusal of a counterfactual setting (``sb3.crm: ...``, ``crm: ...``,
+    ``q.crm on a POMDP: ...``: exit 1, the message on stderr's last line), else None. An
+    interrupted run (exit 130, its last line the resume command, which may name a ``-crm``
+    directory) or a crash (a traceback) is no refusal."""
+    lines = stderr.strip().splitlines()
+    if returncode != 1 or not lines or "Traceback" in stderr:
+        return None
+    return lines[-1] if CRM_REFUSAL.match(lines[-1]) else None
+
+
 def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]:
     """Train ``run``: from its latest checkpoint where an earlier sitting left one (see the
     module docstring), else afresh; the seconds of all its train processes and its command. A
@@ -138,16 +153,15 @@ def train(run: Run, scale: float, device: str | None) -> tuple[float, list[str]]
         log = f"$ {' '.join(line)}{' --resume' if resume else ''}\n{done.stdout}{done.stderr}"
         with (run.directory / "train.log").open("a", encoding="utf-8") as out:
             out.write(log)
-        last = done.stderr.strip().splitlines()[-1] if done.stderr.strip() else ""
-        refused = done.returncode != 0 and "Traceback" not in done.stderr and "crm" in last
-        if refused and crm:  # a setting refused (mitlc's one-line error), not a crash
-            run.notes.append(f"crm refused, run without it ({last})")
+        if done.returncode == 130 or (STOP.is_set() and done.returncode != 0):
+            raise Interrupted(f"stopped after {seconds:.0f} s; it goes on from its checkpoint")
+        refusal = crm_refusal(done.returncode, done.stderr)
+        if refusal is not None and crm:
+            run.notes.append(f"crm refused, run without it ({refusal})")
             (run.directory / "notes.json").write_text(json.dumps(run.notes), encoding="utf-8")
             crm = False
             shutil.rmtree(run.directory / "run", ignore_errors=True)
             continue
-        if done.returncode == 130 or (STOP.is_set() and done.returncode != 0):
-            raise Interrupted(f"stopped after {seconds:.0f} s; it goes on from its checkpoint")
         if done.returncode != 0:
             tail = "\n".join(done.stderr.strip().splitlines()[-5:])
             raise RuntimeError(f"mitlc train failed (exit {done.returncode}):\n{tail}")

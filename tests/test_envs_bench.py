@@ -155,3 +155,53 @@ def test_the_iqm_is_over_the_tasks_and_seeds_every_arm_has(bench: Any, tmp_path:
     assert "across doorkey (95% stratified bootstrap); not yet: pointmaze:" in out
     assert "plain  0.100 [" in out and "(2 seeds)" in out and "mitlc  0.900 [" in out
     assert "P(mitlc > plain) 1.000" in out
+
+
+def fake_train(answers: list[tuple[int, str]], calls: list[list[str]]) -> Any:
+    """``subprocess.run`` answering each ``mitlc train`` in turn with (exit status, stderr)."""
+    import subprocess
+
+    def run(line: list[str], **_: Any) -> subprocess.CompletedProcess[str]:
+        calls.append(list(line))
+        code, stderr = answers[len(calls) - 1]
+        return subprocess.CompletedProcess(line, code, "", stderr)
+
+    return run
+
+
+def test_an_interrupted_crm_run_is_not_taken_for_a_refusal(
+    bench: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A counterfactual run stopped by a signal ends with the resume command, which names its
+    ``mitlc-crm`` directory: the bench stops it (to go on later), and never runs it again
+    without counterfactuals."""
+    run = a_run(bench, tmp_path, "pointmaze", "mitlc-crm")
+    resume = (f"stopped at episode 280; checkpoint saved. Continue with:\n  mitlc train "
+              f"specs/envs/pointmaze.yaml --out {run.directory / 'run'} --resume\n")  # fmt: skip
+    calls: list[list[str]] = []
+    monkeypatch.setattr(bench.subprocess, "run", fake_train([(130, resume)], calls))
+    with pytest.raises(bench.Interrupted):
+        bench.train(run, 1.0, None)
+    assert len(calls) == 1 and "sb3.crm=true" in calls[0] and run.notes == []
+    assert bench.crm_refusal(130, resume) is None and bench.crm_refusal(1, resume) is None
+
+
+def test_a_crm_refusal_runs_again_without_it(
+    bench: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """mitlc's own refusal (its one-line message, exit 1) is met by a run without ``crm``."""
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    world = ROOT / "specs" / "paper" / "case1.yaml"
+    said = CliRunner().invoke(app, ["train", str(world), "--algo", "sb3-ppo", "--set",
+                                    "sb3.crm=true", "--out", str(tmp_path / "x")])  # fmt: skip
+    assert said.exit_code == 1 and bench.crm_refusal(1, said.output) is not None
+    assert bench.crm_refusal(1, "Traceback (most recent call last):\n" + said.output) is None
+    run = a_run(bench, tmp_path, "pointmaze", "mitlc-crm")
+    calls: list[list[str]] = []
+    monkeypatch.setattr(bench.subprocess, "run", fake_train([(1, said.output), (0, "")], calls))
+    bench.train(run, 1.0, None)
+    assert "sb3.crm=true" in calls[0] and "sb3.crm=true" not in calls[1]
+    assert run.notes[0].startswith("crm refused, run without it (sb3.crm: ")
