@@ -41,7 +41,7 @@ from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.base import Learner, ProductShaping, product_potential
 from mitlc.learn.learners.open_world import make_open_learner
 from mitlc.learn.rundir import checkpoint
-from mitlc.learn.rundir.files import METRICS, SUMMARY, locked
+from mitlc.learn.rundir.files import METRICS, SUMMARY
 from mitlc.learn.rundir.files import RunError as RunError
 from mitlc.learn.rundir.runlog import (
     Progress,
@@ -58,8 +58,8 @@ from mitlc.learn.setting import (
     CONFIG,
     Setting,
     load_setting,
+    opened_run,
     prepare,
-    read_config,
     save_config,
     setting_notes,
     task_vector_of,
@@ -183,23 +183,6 @@ def _restore(directory: Path, learner: Learner, env: Any, tally: Tally) -> None:
         raise RunError(f"{loaded.files['json']}: tally.steps is not the checkpoint's steps")
 
 
-def _start(directory: Path, setting: Setting, spec: str, resume: bool) -> None:
-    """Check the run directory (locked by the caller) for a fresh run or a resumed one."""
-    if not resume:
-        if (directory / CONFIG).exists() or checkpoint.exists(directory):
-            raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
-        return
-    data, saved = read_config(directory)
-    config = setting.config
-    if replace(saved, episodes=config.episodes, device=config.device) != config:
-        raise RunError(
-            f"{directory}: --resume with settings other than the run's own (only "
-            "--episodes may change, and the device)"
-        )
-    if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != spec:
-        raise RunError(f"{directory}: --resume with another world or task than the run's")
-
-
 def train(
     world_path: str | Path,
     config: TrainConfig,
@@ -232,12 +215,7 @@ def train(
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)
-    if resume:
-        read_config(directory)  # a run directory at all?
-    else:
-        directory.mkdir(parents=True, exist_ok=True)
-    with locked(directory):
-        _start(directory, setting, setting.world.spec, resume)
+    with opened_run(directory, setting, resume, sb3=False):
         return _train(directory, setting, resume, progress, should_stop)
 
 

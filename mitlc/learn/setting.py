@@ -12,6 +12,8 @@ task wrapper (:func:`task_vector_of`, any world); the batches of the Monte-Carlo
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -26,7 +28,8 @@ from mitlc.learn.config import ConfigError, TrainConfig, from_data, to_data
 from mitlc.learn.envs.envvec import VectorTask, task_vector
 from mitlc.learn.envs.vec import Tables, VecProduct, tables
 from mitlc.learn.evaluation.montecarlo import Batches
-from mitlc.learn.rundir.files import RunError, read_json
+from mitlc.learn.rundir import checkpoint
+from mitlc.learn.rundir.files import RunError, locked, read_json
 from mitlc.learn.rundir.state import one_line
 from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.product.explicit import Product, build_product
@@ -264,6 +267,41 @@ def save_config(directory: Path, setting: Setting) -> None:
     write_atomically(
         directory / CONFIG, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode()
     )
+
+
+@contextmanager
+def opened_run(directory: Path, setting: Setting, resume: bool, *, sb3: bool) -> Iterator[None]:
+    """Hold the run directory locked for a fresh run or a resumed one, after checking it: a
+    fresh run needs a directory with no run in it; a resumed one the run's own world, task and
+    settings, of which only the budget (``--episodes``, and ``sb3.steps`` for Stable-Baselines3's
+    runs) and the device may change."""
+    if resume:
+        read_config(directory)  # a run directory at all?
+    else:
+        directory.mkdir(parents=True, exist_ok=True)
+    with locked(directory):
+        _check_start(directory, setting, resume, sb3)
+        yield
+
+
+def _check_start(directory: Path, setting: Setting, resume: bool, sb3: bool) -> None:
+    if not resume:
+        if (directory / CONFIG).exists() or checkpoint.exists(directory):
+            raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
+        return
+    data, saved = read_config(directory)
+    config = setting.config
+    may_change = replace(saved, episodes=config.episodes, device=config.device)
+    if sb3:
+        may_change = replace(may_change, sb3=replace(saved.sb3, steps=config.sb3.steps))
+    if may_change != config:
+        budget = "sb3.steps" if sb3 else "--episodes"
+        raise RunError(
+            f"{directory}: --resume with settings other than the run's own (only {budget} may "
+            "change, and the device)"
+        )
+    if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != setting.world.spec:
+        raise RunError(f"{directory}: --resume with another world or task than the run's")
 
 
 def load_setting(directory: Path, *, deadline: Deadline | None = None) -> Setting:

@@ -52,7 +52,6 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from operator import attrgetter
 from pathlib import Path
 from typing import Any
@@ -75,7 +74,7 @@ from mitlc.learn.device import resolve_device
 from mitlc.learn.held import run_never_held
 from mitlc.learn.learners.nets import configure_torch
 from mitlc.learn.rundir import checkpoint
-from mitlc.learn.rundir.files import METRICS, SUMMARY, RunError, locked
+from mitlc.learn.rundir.files import METRICS, SUMMARY, RunError
 from mitlc.learn.rundir.runlog import (
     Progress,
     RunResult,
@@ -88,10 +87,9 @@ from mitlc.learn.rundir.runlog import (
 )
 from mitlc.learn.rundir.state import one_line, restore
 from mitlc.learn.setting import (
-    CONFIG,
     Setting,
+    opened_run,
     prepare,
-    read_config,
     save_config,
     setting_notes,
 )
@@ -275,31 +273,8 @@ def train(
         for note in setting_notes(setting):
             notes(note)
     needs_box(config.algo, lambda: wrapped_env(setting), setting.world_path)
-    if resume:
-        read_config(directory)
-    else:
-        directory.mkdir(parents=True, exist_ok=True)
-    with locked(directory):
-        _start(directory, setting, resume)
+    with opened_run(directory, setting, resume, sb3=True):
         return _train(directory, setting, device, resume, progress, should_stop, notes)
-
-
-def _start(directory: Path, setting: Setting, resume: bool) -> None:
-    """Check the locked run directory for a fresh run or a resumed one."""
-    if not resume:
-        if (directory / CONFIG).exists() or checkpoint.exists(directory):
-            raise RunError(f"{directory}: a run is already there (use --resume, or another --out)")
-        return
-    data, saved = read_config(directory)
-    config = setting.config
-    steps = replace(saved.sb3, steps=config.sb3.steps)
-    if replace(saved, episodes=config.episodes, sb3=steps, device=config.device) != config:
-        raise RunError(
-            f"{directory}: --resume with settings other than the run's own (only sb3.steps may "
-            "change, and the device)"
-        )
-    if Path(data["world"]) != setting.world_path.resolve() or data["spec"] != setting.world.spec:
-        raise RunError(f"{directory}: --resume with another world or task than the run's")
 
 
 def _train(
