@@ -291,10 +291,10 @@ def _check_start(directory: Path, setting: Setting, resume: bool, sb3: bool) -> 
         return
     data, saved = read_config(directory)
     config = setting.config
-    may_change = replace(saved, episodes=config.episodes, device=config.device)
+    kept = replace(saved, episodes=config.episodes, device=config.device)
     if sb3:
-        may_change = replace(may_change, sb3=replace(saved.sb3, steps=config.sb3.steps))
-    if may_change != config:
+        kept = replace(kept, sb3=replace(saved.sb3, steps=config.sb3.steps))
+    if kept != config:  # the run's settings, with what may change taken from the new ones
         budget = "sb3.steps" if sb3 else "--episodes"
         raise RunError(
             f"{directory}: --resume with settings other than the run's own (only {budget} may "
