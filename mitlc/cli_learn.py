@@ -349,6 +349,8 @@ def _print_evaluation(
             ("Storm bounds", f"[{report.bounds['lower']:.6f}, {report.bounds['upper']:.6f}]")
         )
     rows.append(("mean return", f"{report.mean_return:.2f}"))
+    if report.mean_rounds > 0:
+        rows.append(("mean rounds completed", f"{report.mean_rounds:.2f}"))
     if report.mean_cost is not None:
         rows.append(("mean cost", f"{report.mean_cost:.2f}"))
     if report.min_cost is not None:

@@ -45,8 +45,8 @@ def _to_rtamt(formula: ast.Formula) -> str:
             return f"({name}>0.5)"
         case ast.Not(operand):
             return f"not({_to_rtamt(operand)})"
-        case ast.Next(operand):
-            return f"next({_to_rtamt(operand)})"
+        case ast.Next(operand):  # LTLf's strong next: rtamt's next is weak at the last sample
+            return f"eventually[1,1]({_to_rtamt(operand)})"
         case ast.And(left, right):
             return f"(({_to_rtamt(left)}) and ({_to_rtamt(right)}))"
         case ast.Or(left, right):

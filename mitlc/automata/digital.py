@@ -37,13 +37,15 @@ class DigitalState:
     ``verdict`` is ``satisfied`` when every continuation is accepted, ``violated`` when none is
     (the one rejecting sink), ``pending`` otherwise. ``end`` is whether a finite trace that
     stops in this state satisfies the formula (:mod:`mitlc.automata.ends`): what an episode
-    still pending at its end is judged by (:func:`mitlc.task.rules.success`).
+    still pending at its end is judged by (:func:`mitlc.task.rules.success`): an end code of
+    :mod:`mitlc.automata.ends`, 0 (fails), or ``1 + sets``: succeeds once the acceptance sets of
+    the mask ``sets`` have been seen (1: at once).
     """
 
     obligation: str
     component: Component
     verdict: Verdict
-    end: bool = False
+    end: int = 0
 
 
 class Row(NamedTuple):
@@ -321,8 +323,8 @@ class DigitalAutomaton:
         jump's action number in a product or a gym wrapper is its place here."""
         return self.jump_order[state] if self.jump_order else self.jumps_from(state)
 
-    def end(self, state: int) -> bool:
-        """Whether a trace that stops in ``state`` satisfies the formula
+    def end(self, state: int) -> int:
+        """What a trace that stops in ``state`` is worth: its end code
         (:attr:`DigitalState.end`)."""
         return self.states[state].end
 

@@ -58,13 +58,16 @@ def live_states(
     epsilon: Sequence[tuple[int, int]],
     num_sets: int,
     rejecting: set[int],
+    stops: set[int] | frozenset[int] = frozenset(),
 ) -> tuple[set[int], list[int]]:
-    """The states from which an accepting run exists, and the SCC index of every state
-    (:func:`strongly_connected`, over letters and jumps).
+    """The states from which an accepting run or a successful stop exists, and the SCC index of
+    every state (:func:`strongly_connected`, over letters and jumps).
 
     An SCC is accepting when its internal letter transitions carry every acceptance set (with
     zero sets: when it has an internal transition and no rejecting state). A state is live when
-    it reaches an accepting SCC.
+    it reaches an accepting SCC or one of ``stops``, the states where a finite trace may stop
+    with success (:mod:`mitlc.automata.ends`): a state is *violated* only when no continuation,
+    infinite or finite, satisfies the task.
     """
     n = len(delta)
     successors: list[list[int]] = [sorted(set(row)) for row in delta]
@@ -86,7 +89,7 @@ def live_states(
     for s in range(n):
         for t in successors[s]:
             predecessors[t].append(s)
-    live = {s for s in range(n) if component[s] in accepting}
+    live = {s for s in range(n) if component[s] in accepting} | set(stops)
     frontier = list(live)
     while frontier:
         t = frontier.pop()

@@ -20,7 +20,7 @@ from typing import Any, Literal, NamedTuple, TypeAlias
 
 from mitlc.automata.accepting import Guess, Substitution, guesses, unbounded_atoms
 from mitlc.automata.digital import DigitalState, Verdict
-from mitlc.automata.ends import end_value
+from mitlc.automata.ends import END_FAILS, END_HOLDS, holds_after
 from mitlc.automata.normalize import normalize
 from mitlc.automata.progress import Progression
 from mitlc.automata.recurrence import Recurrence, split_recurrence
@@ -85,12 +85,9 @@ class Rules:
     num_sets: int
     recurrence: Recurrence | None = None
     substitution: Substitution = field(init=False)
-    ends: dict[int, bool] = field(init=False)
-    """Memo of :func:`mitlc.automata.ends.end_value`."""
 
     def __post_init__(self) -> None:
         self.substitution = Substitution(self.store)
-        self.ends = {}
 
     @staticmethod
     def of(formula: ast.Formula, store: TermStore | None = None) -> Rules:
@@ -213,23 +210,44 @@ class Rules:
                     yield found
 
     def state(self, key: Key) -> DigitalState:
-        """The obligation, component and verdict of a live state ``key``."""
+        """The obligation, component, verdict and end code of a live state ``key``."""
         if key == SINK:
             return DigitalState("false", "initial", "violated")
         if key == TRUE:
-            return DigitalState("true", "initial", "satisfied", True)
-        if key.kind == "initial":
-            owed = key.forms[0]
-        elif key.kind == "recurrence":
-            assert self.recurrence is not None
-            owed = self.recurrence.obligation(self.store, key.forms)
-        else:  # a guess: proved by completed rounds only (mitlc.automata.ends)
+            return DigitalState("true", "initial", "satisfied", END_HOLDS)
+        if key.kind == "accepting":  # a guess: proved by completed rounds (mitlc.automata.ends)
             guess = key.guess()
             satisfied = guess.is_trivially_true(self.store)
             verdict: Verdict = "satisfied" if satisfied else "pending"
-            return DigitalState(guess.text(self.store), "accepting", verdict, satisfied)
-        end = end_value(self.store, owed, self.ends)
-        return DigitalState(form_text(self.store, owed), "initial", "pending", end)
+            return DigitalState(guess.text(self.store), "accepting", verdict, self.end(key))
+        owed = form_text(self.store, self.owed(key))
+        return DigitalState(owed, "initial", "pending", self.end(key))
+
+    def owed(self, key: Key) -> int:
+        """The obligation of an initial or recurrence state ``key``."""
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            return self.recurrence.obligation(self.store, key.forms)
+        return key.forms[0]
+
+    def end(self, key: Key) -> int:
+        """What a stop in ``key`` is worth: an end code of :mod:`mitlc.automata.ends`."""
+        if key == SINK:
+            return END_FAILS
+        if key == TRUE:
+            return END_HOLDS
+        if key.kind == "accepting":
+            guess = key.guess()
+            if guess.is_trivially_true(self.store):
+                return END_HOLDS
+            all_sets = (1 << self.num_sets) - 1
+            return holds_after(all_sets) if self.store.end_value(guess.safety) else END_FAILS
+        if not self.store.end_value(self.owed(key)):
+            return END_FAILS
+        if key.kind == "recurrence":
+            assert self.recurrence is not None
+            return holds_after(self.recurrence.renewing_sets)
+        return END_HOLDS
 
     def surely_live(self, key: Key) -> bool:
         """True for the states :meth:`state` calls satisfied: each loops on itself with every

@@ -17,7 +17,8 @@ Two facts make that possible and exact.
   run (over all letters) into the rejecting sink, with the rule of
   :func:`mitlc.automata.graph.live_states`: a state is live iff it reaches an SCC whose internal
   letter transitions carry every acceptance set (with zero sets: that has an internal
-  transition) and that is not the sink. The class graph has the same states, the same
+  transition) and that is not the sink, or a state where a finite trace may stop with success
+  (:mod:`mitlc.automata.ends`). The class graph has the same states, the same
   (source, target, marks) triples and the same jumps as the full letter graph, so it has the
   same SCCs, the same accepting SCCs and the same live states. Liveness is decided by
   Couvreur's on-the-fly search (Tarjan's SCC search keeping the marks of each partial SCC;
@@ -45,6 +46,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mitlc.automata.digital import Component, DigitalState, Verdict
+from mitlc.automata.ends import END_FAILS
 from mitlc.automata.keys import SINK, Key, Rules, Transitions
 from mitlc.automata.ldba import state_limit_error
 from mitlc.automata.terms import TermStore
@@ -171,6 +173,9 @@ class _Graph:
         lead from the initial to the accepting component and never back, so every cycle
         holds a letter transition, as :func:`mitlc.automata.graph.live_states` requires."""
         live, number, all_sets = self.live, {start: 0}, (1 << self.rules.num_sets) - 1
+        if self._stops(start):
+            live[start] = True
+            return
         stack, work = [start], [_Frame(start, len(self.out_edges(start)) - 1)]
         # [number, marks, entry marks] of each partial SCC, by depth: its root's number, the
         # marks of its internal edges, and those of the tree edge into its root
@@ -194,6 +199,10 @@ class _Graph:
                 continue
             if target not in number:
                 self.deadline.check_now()
+                if self._stops(target):  # a successful stop: live, and so is the path
+                    live[target] = True
+                    self._mark_live(stack)
+                    return
                 number[target] = len(number)
                 stack.append(target)
                 roots.append([number[target], 0, marks])
@@ -218,6 +227,12 @@ class _Graph:
             frame.jump += 1
             return jumps[frame.jump - 1], 0
         return None
+
+    def _stops(self, node: int) -> bool:
+        """Whether a finite trace may stop in ``node`` with success (:mod:`mitlc.automata.ends`):
+        such a node is live whatever follows."""
+        key = self.keys[node]
+        return key != SINK and self.rules.end(key) != END_FAILS
 
     def _mark_live(self, nodes: list[int]) -> None:
         for node in nodes:
@@ -312,9 +327,9 @@ class LazyAutomaton:
         """The formula still owed in ``state`` (as :attr:`DigitalState.obligation`)."""
         return self._state(state).obligation
 
-    def end(self, state: int) -> bool:
-        """Whether a trace that stops in ``state`` satisfies the formula (as
-        :attr:`DigitalState.end`)."""
+    def end(self, state: int) -> int:
+        """What a trace that stops in ``state`` is worth: its end code
+        (:attr:`DigitalState.end`)."""
         return self._state(state).end
 
     def component(self, state: int) -> Component:

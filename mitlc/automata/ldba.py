@@ -36,6 +36,7 @@ from types import EllipsisType
 from typing import Any
 
 from mitlc.automata.digital import DigitalAutomaton, DigitalState, Row
+from mitlc.automata.ends import END_FAILS
 from mitlc.automata.graph import live_states
 from mitlc.automata.keys import SINK, Key, Rules
 from mitlc.automata.keys import StateKind as StateKind
@@ -205,8 +206,14 @@ class _Builder:
         keys, rules = explored.keys, self.rules
         sink_ids = {i for i, k in enumerate(keys) if k == SINK}
         delta = [row.targets for row in explored.rows]
+        stops = {i for i, k in enumerate(keys) if rules.end(k) != END_FAILS}
         live, component = live_states(
-            delta, [row.marks for row in explored.rows], explored.epsilon, rules.num_sets, sink_ids
+            delta,
+            [row.marks for row in explored.rows],
+            explored.epsilon,
+            rules.num_sets,
+            sink_ids,
+            stops,
         )
         order = _bfs_order(delta, explored.epsilon, live)
         new_id = {old: new for new, old in enumerate(order)}

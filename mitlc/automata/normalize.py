@@ -1,12 +1,13 @@
 """From the AST to the term store: negation normal form, and unbounded operators from 0.
 
-``normalize(formula, store)`` pushes negations down to the literals (``!X p = X !p`` on infinite
-words, ``!F_I p = G_I !p``, ``!(p U_I q) = !p R_I !q``), expands ``->`` and ``<->``, and rewrites
-an unbounded operator with a positive lower bound into a bounded one around an unbounded one
-from 0, so that progression never shifts an unbounded interval:
+``normalize(formula, store)`` pushes negations down to the literals (``!X p`` is the weak next
+of ``!p``, true at the end of a trace where the strong ``X p`` is false; ``!F_I p = G_I !p``,
+``!(p U_I q) = !p R_I !q``), expands ``->`` and ``<->``, and rewrites an unbounded operator
+with a positive lower bound into a bounded one around an unbounded one from 0, so that
+progression never shifts an unbounded interval:
 
-* ``F[a,inf) p = X^a F p`` and ``G[a,inf) p = X^a G p``;
-* ``p U[a,inf) q = G[0,a-1] p & X^a (p U q)`` and ``p R[a,inf) q = F[0,a-1] p | X^a (p R q)``.
+* ``F[a,inf) p = X^a F p`` and ``G[a,inf) p = N^a G p`` (``N``: the weak next, a weak delay);
+* ``p U[a,inf) q = G[0,a-1] p & X^a (p U q)`` and ``p R[a,inf) q = F[0,a-1] p | N^a (p R q)``.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ def normalize(formula: ast.Formula, store: TermStore) -> int:
                 both = store.and_(nnf(left, True), nnf(right, positive))
                 neither = store.and_(nnf(left, False), nnf(right, not positive))
                 return store.or_(both, neither)
-            case ast.Next(operand):
-                return store.delay(1, nnf(operand, positive))
+            case ast.Next(operand):  # LTLf: X is strong, so !X p is the weak next of !p
+                return store.delay(1, nnf(operand, positive), strong=positive)
             case ast.Eventually(interval, operand) | ast.Always(interval, operand):
                 kind = EVENTUALLY if isinstance(f, ast.Eventually) == positive else ALWAYS
                 return temporal(store, kind, interval, nnf(operand, positive))
@@ -62,9 +63,10 @@ def temporal(store: TermStore, kind: str, interval: ast.Interval, left: int, rig
         return store.temporal(kind, lo, interval.hi, left, right)
     if lo == 0:
         return store.temporal(kind, 0, INF, left, right)
+    strong = kind in (EVENTUALLY, UNTIL)
     if kind in (EVENTUALLY, ALWAYS):
-        return store.delay(lo, store.temporal(kind, 0, INF, left))
-    tail = store.delay(lo, store.temporal(kind, 0, INF, left, right))
+        return store.delay(lo, store.temporal(kind, 0, INF, left), strong)
+    tail = store.delay(lo, store.temporal(kind, 0, INF, left, right), strong)
     if kind == UNTIL:
         return store.and_(store.temporal(ALWAYS, 0, lo - 1, left), tail)
     assert kind == RELEASE

@@ -5,6 +5,9 @@ has been read at the current position (Bacchus and Kabanza's progression; the ``
 of Esparza, Křetínský and Sickert, JACM 2020), with bounded intervals shifted by one step:
 
 * ``F[lo,hi] p``: ``lo > 0`` gives ``F[lo-1,hi-1] p``; ``lo = 0`` gives ``p' | F[0,hi-1] p``;
+  a delay's last step ``F[1,1] p`` (``G[1,1] p``) gives ``p`` at the next letter, strong (weak):
+  ``p`` itself where its value at the end of a trace is already the delay's
+  (:meth:`~mitlc.automata.terms.TermStore.point`);
 * ``G[lo,hi] p``: ``lo > 0`` gives ``G[lo-1,hi-1] p``; ``lo = 0`` gives ``p' & G[0,hi-1] p``;
 * ``p U[lo,hi] q``: ``lo > 0`` gives ``p' & p U[lo-1,hi-1] q``; ``lo = 0`` gives
   ``q' | p' & p U[0,hi-1] q``;
@@ -139,7 +142,9 @@ class Progression:
             return d.node(lo, no, yes) if hi else d.node(lo, yes, no)
         later_hi = hi if hi == INF else hi - 1
         if kind in (EVENTUALLY, ALWAYS):
-            if lo > 0:  # a delay F[a,a] p ends in p itself; a window keeps its last step
+            if lo == hi == 1:  # a delay's last step: its operand at the next letter
+                return d.leaf(store.point(kind, left))
+            if lo > 0:  # a shorter delay; a window keeps its last step
                 return d.leaf(store.temporal(kind, lo - 1, later_hi, left, keep_point=lo != hi))
             now = self.split(left)
             if kind == EVENTUALLY:

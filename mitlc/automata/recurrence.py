@@ -12,11 +12,13 @@ is ``true`` every token of the old batch was met, the step is in acceptance set 
 every step. Examples: ``G F a``, ``G (req -> F done)``, ``G a & F b``, ``G F a & G F b``.
 
 A *renewing* ``χ`` (a disjunction of ``F φ`` with ``φ`` propositional, as in ``G F a`` or
-``G (F a & F b)``) needs no tokens: its progression is ``true`` on a letter satisfying some
+``G (F a | F b)``) needs no tokens: its progression is ``true`` on a letter satisfying some
 ``φ`` and ``χ`` itself on any other, so every pending token is met at the same step, and
 ``G χ`` holds iff such letters come infinitely often. Its set is marked on those letters and
 its ``B`` and ``N`` stay ``true`` (the generalized Büchi automaton of ``G F φ_1 & ... & G F
-φ_n`` with one state, instead of ``3^n``).
+φ_n`` with one state, instead of ``3^n``). A finite trace owes one such letter (the episode's
+reading of ``G F φ``): its set must have been seen (:attr:`Recurrence.renewing_sets`,
+:mod:`mitlc.automata.ends`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,11 @@ class Recurrence:
 
     cosafety_set_needed: bool
     """Whether a co-safety part is owed (then it has the last acceptance set)."""
+
+    @property
+    def renewing_sets(self) -> int:
+        """The mask of the renewing recurrences' acceptance sets."""
+        return sum(1 << i for i, renewing in enumerate(self.renewing) if renewing)
 
     @property
     def num_sets(self) -> int:
@@ -116,16 +123,22 @@ def _has(store: TermStore, form: int, kinds: tuple[str, ...]) -> bool:
 
 
 def split_recurrence(store: TermStore, root: int) -> Recurrence | None:
-    """The split of ``root`` (see the module docstring), or ``None`` when it has another shape."""
+    """The split of ``root`` (see the module docstring), or ``None`` when it has another shape.
+
+    The atoms common to every cube of ``root`` are the parts, and the disjunction of what
+    remains of the cubes one more (``G F a & (b | F[2,inf) c)``: the recurrence, and a
+    co-safety part)."""
     cubes = store.forms[root]
-    if len(cubes) != 1:
+    if not cubes:
         return None
-    (cube,) = cubes
+    cube = frozenset.intersection(*cubes)
     chis: list[int] = []
     safety, cosafety = [], []
-    for atom in sorted(cube):
-        form = store.atom_form(atom)
-        kind, lo, hi, left, _ = store.atoms[atom]
+    rest = store.any_of(store.all_of(map(store.atom_form, other - cube)) for other in cubes)
+    forms = [(store.atom_form(atom), store.atoms[atom]) for atom in sorted(cube)]
+    if rest != store.true:  # the atoms not common to every cube: one more part
+        forms.append((rest, ("", 0, 0, 0, 0)))
+    for form, (kind, lo, hi, left, _) in forms:
         if not _has(store, form, (EVENTUALLY, UNTIL)):
             safety.append(form)
         elif not _has(store, form, (ALWAYS, RELEASE)):

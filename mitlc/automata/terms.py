@@ -41,6 +41,9 @@ SEQUENTIAL_CUBES = 16
 # Atom kinds.
 LIT, EVENTUALLY, ALWAYS, UNTIL, RELEASE = "lit", "F", "G", "U", "R"
 
+_HOLD_AT_END = frozenset({ALWAYS, RELEASE})
+"""The atom kinds that hold at the end of a trace (:meth:`TermStore.end_value`)."""
+
 Atom: TypeAlias = tuple[str, int, int, int, int]
 """``(kind, a, b, c, d)``: ``("lit", prop, positive, 0, 0)``, ``("F"|"G", lo, hi, operand, 0)``,
 ``("U"|"R", lo, hi, left, right)``; operands are form ids, ``hi == INF`` for unbounded."""
@@ -62,6 +65,7 @@ class TermStore:
         self.true = self.form(frozenset({frozenset()}))
         self._and_cache: dict[tuple[int, int], int] = {}
         self._or_cache: dict[tuple[int, int], int] = {}
+        self._ends: dict[int, bool] = {}
         self.texts: dict[int, tuple[str, int]] = {}
         """Memo of :func:`mitlc.automata.text.form_text`: a form's text and printer level."""
 
@@ -102,7 +106,10 @@ class TermStore:
 
         For ``F``/``G`` the operand is ``left``; for ``U``/``R`` the operands are ``left`` and
         ``right``. ``[0,0]`` is the (right) operand itself; ``true U_I q`` is ``F_I q`` and
-        ``false R_I q`` is ``G_I q``; constants fold; ``F[a,a]`` and ``G[a,a]`` are delays;
+        ``false R_I q`` is ``G_I q``; constants fold where that holds on finite traces too
+        (``F_I false`` and ``G_I true``; from ``lo = 0``, ``F_I true`` and ``G_I false``; a later
+        window of a constant is a point, ``F[2,4] true`` is ``F[2,2] true``: at least three
+        letters); ``F[a,a]`` is a strong delay and ``G[a,a]`` a weak one (:meth:`delay`);
         ``F F p`` is ``F p`` and ``G G p`` is ``G p``. With ``keep_point`` an operator on
         ``[0,0]`` stays an atom: progression keeps it, so that folding can follow a bounded
         obligation to its last step (``!a U[0,0] a`` is the last step of ``!a U[5,10] a``).
@@ -115,15 +122,21 @@ class TermStore:
         if lo == 0 and hi == 0 and not keep_point:
             return operand
         if operand in (self.true, self.false):
-            # F_I c = G_I c = c; p U_I false = false; p R_I true = true; and from lo = 0,
-            # p U_I true = true, p R_I false = false.
-            if kind in (EVENTUALLY, ALWAYS) or lo == 0:
+            # F_I false = U_I false = false, G_I true = R_I true = true; from lo = 0 (the
+            # current letter exists), F_I true = U_I true = true and G_I false = R_I false =
+            # false. A later window of a constant owes letters: a point of it.
+            strong = kind in (EVENTUALLY, UNTIL)
+            if strong == (operand == self.false):
                 return operand
-            if (kind == UNTIL) == (operand == self.false):
+            if lo == 0 and keep_point:  # kept by progression: the letter may not exist
+                return self.point(EVENTUALLY if strong else ALWAYS, operand)
+            if lo == 0:
                 return operand
+            if kind in (EVENTUALLY, ALWAYS):
+                return self.delay(lo, operand, strong=kind == EVENTUALLY)
         if kind in (EVENTUALLY, ALWAYS):
             if lo == hi and lo > 0:
-                return self.delay(lo, operand)
+                return self.delay(lo, operand, strong=kind == EVENTUALLY)
             if hi == INF and self._is_unbounded(operand, kind):
                 return operand
             return self.atom_form(self.atom((kind, lo, hi, operand, 0)))
@@ -141,24 +154,52 @@ class TermStore:
         k, lo, hi, _, _ = self.atoms[only]
         return k == kind and lo == 0 and hi == INF
 
-    def delay(self, steps: int, operand: int) -> int:
-        """``X^steps operand``, written ``F[steps,steps] operand``.
+    def delay(self, steps: int, operand: int, strong: bool = True) -> int:
+        """``operand`` ``steps`` letters later: strong, ``X^steps operand`` written
+        ``F[steps,steps] operand`` (the letter must exist), or weak, ``G[steps,steps] operand``
+        (it holds when the trace ends first), as LTLf's next and weak next (De Giacomo and
+        Vardi, IJCAI 2013).
 
-        Delays add up, and a delayed bounded ``F`` or ``G`` shifts its interval:
-        ``X^s F[l,h] p`` is ``F[l+s,h+s] p``. (A delayed until keeps its delay: its left operand
-        must hold from the delayed position on, not from now.)
+        Delays add up, and a delayed bounded window of the same strength shifts its interval:
+        ``X^s F[l,h] p`` is ``F[l+s,h+s] p`` and a weak ``X^s G[l,h] p`` is ``G[l+s,h+s] p``.
+        (A delayed until keeps its delay: its left operand must hold from the delayed position
+        on, not from now.) A strong delay of ``false`` is ``false``, a weak one of ``true`` is
+        ``true``; the others stay atoms (``F[2,2] true``: the trace has at least 3 letters).
         """
-        if steps == 0 or operand in (self.true, self.false):
+        kind = EVENTUALLY if strong else ALWAYS
+        if steps == 0 or operand == (self.false if strong else self.true):
             return operand
         cubes = self.forms[operand]
         if len(cubes) == 1:
             (cube,) = cubes
             if len(cube) == 1:
                 (only,) = cube
-                kind, lo, hi, inner, _ = self.atoms[only]
-                if kind in (EVENTUALLY, ALWAYS) and hi != INF:
+                inner_kind, lo, hi, inner, _ = self.atoms[only]
+                if inner_kind == kind and hi != INF:
                     return self.atom_form(self.atom((kind, lo + steps, hi + steps, inner, 0)))
-        return self.atom_form(self.atom((EVENTUALLY, steps, steps, operand, 0)))
+        return self.atom_form(self.atom((kind, steps, steps, operand, 0)))
+
+    def point(self, kind: str, operand: int) -> int:
+        """``operand`` at the next letter, strong (``kind`` F: the letter must exist) or weak
+        (G: true when the trace ends first): the last step of a delay. It is ``operand`` itself
+        when that already has the right value at the end of a trace (:meth:`end_value`), else
+        the atom ``F[0,0] operand`` or ``G[0,0] operand``."""
+        if self.end_value(operand) == (kind == ALWAYS):
+            return operand
+        return self.atom_form(self.atom((kind, 0, 0, operand, 0)))
+
+    def end_value(self, form: int) -> bool:
+        """Whether the obligation ``form`` holds on the empty suffix, at the end of a finite
+        trace (:mod:`mitlc.automata.ends`): some cube whose every atom does; a literal, an
+        ``F`` or ``U`` atom (windows, points and strong delays) do not, a ``G`` or ``R`` atom
+        (windows, points and weak delays) does."""
+        found = self._ends.get(form)
+        if found is None:
+            atoms = self.atoms
+            found = self._ends[form] = any(
+                all(atoms[a][0] in _HOLD_AT_END for a in cube) for cube in self.forms[form]
+            )
+        return found
 
     # --- Boolean operations ---------------------------------------------------------------------
 
@@ -363,13 +404,9 @@ class TermStore:
         )
 
     def implies_at_the_end(self, a: int, b: int) -> bool:
-        """:meth:`implies`, but for a delay ``F[k,k] p`` (``k > 0``) and a window ``F[l,h] p``
-        around ``k``: on infinite words the delay implies the window, but at the end of a trace
-        the delay is worth ``p`` and the window fails (:mod:`mitlc.automata.ends`), so dropping
-        the delay's cube would change a state's value at the end of an episode."""
-        kind, lo, hi, _, _ = self.atoms[a]
-        if kind == EVENTUALLY and lo == hi > 0:
-            return a == b
+        """:meth:`implies`, which holds on finite traces and at their end too: a strong delay
+        ``F[k,k] p`` and a window ``F[l,h] p`` around ``k`` both fail there, a weak delay
+        ``G[k,k] p`` and a window ``G[l,h] p`` both hold."""
         return self.implies(a, b)
 
     @staticmethod

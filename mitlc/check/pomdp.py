@@ -60,7 +60,7 @@ from mitlc.product.explicit import (
     build_product,
     product_ends,
 )
-from mitlc.task import TaskAutomaton
+from mitlc.task import TaskAutomaton, rules
 from mitlc.worlds.model import World
 
 TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
@@ -151,7 +151,7 @@ def to_pomdp_drn(
             a = int(product.action[c])
             body.append(f"\taction {world.actions[a] if a >= 0 else f'jump{-1 - a}'}")
             if at_horizon:
-                body.append(f"\t\t{2 if ends[x] else 3} : 1")
+                body.append(f"\t\t{2 if ends[x] == rules.END_HOLDS else 3} : 1")
                 continue
             after = step + 1 if (a >= 0 and horizon is not None) else step
             merged: dict[int, float] = {}

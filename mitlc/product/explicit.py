@@ -34,7 +34,7 @@ from mitlc.automata.digital import DigitalAutomaton
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.task import TaskAutomaton, TaskMonitor, rules
-from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Sparse, World
+from mitlc.worlds.model import FloatArray, IntArray, Sparse, World
 
 VIOLATED, SATISFIED = 0, 1
 """The ids of the two absorbing product states."""
@@ -63,10 +63,10 @@ class Product:
     transitions: Sparse
     num_sets: int
     initial_distribution: tuple[tuple[int, float], ...] = ()
-    end: BoolArray | None = None
-    """Per state, whether an episode that stops there while pending is a success by the
-    finite trace it read (:attr:`mitlc.automata.DigitalState.end` of its automaton state;
-    ``None``: no state's). The absorbing states' are ``False`` and ``True``."""
+    end: IntArray | None = None
+    """Per state, the end code of an episode that stops there while pending (whether the
+    finite trace it read is a success: :attr:`mitlc.automata.DigitalState.end` of its automaton
+    state; ``None``: no state's). The absorbing states' fail and hold."""
     """The product states the episode may start in, each once, with their probabilities (the
     world's start distribution; one state with probability 1 for a certain start). ``initial``
     is the one of the world's ``start``."""
@@ -114,13 +114,13 @@ def product_verdicts(product: Product) -> IntArray:
     return verdict
 
 
-def product_ends(product: Product) -> BoolArray:
-    """The end value of every product state (:attr:`Product.end`; all ``False`` but the
-    satisfied state's for a product made without them)."""
+def product_ends(product: Product) -> IntArray:
+    """The end code (:mod:`mitlc.automata.ends`) of every product state (:attr:`Product.end`;
+    all fails but the satisfied state's for a product made without them)."""
     if product.end is not None:
         return product.end
-    end = np.zeros(product.num_states, dtype=np.bool_)
-    end[SATISFIED] = True
+    end = np.zeros(product.num_states, dtype=np.int64)
+    end[SATISFIED] = rules.END_HOLDS
     return end
 
 
@@ -253,7 +253,7 @@ def _build(world: World, monitor: TaskMonitor, clock: Deadline, limit: int | Non
     automaton_state = np.where(codes >= 0, codes // num_s, -1)
     del codes
     end = monitor.ends(np.maximum(automaton_state, 0))
-    end[VIOLATED], end[SATISFIED] = False, True
+    end[VIOLATED], end[SATISFIED] = rules.END_FAILS, rules.END_HOLDS
     merged: dict[int, float] = {}
     for x, (_, p) in zip(initial.tolist(), starts, strict=True):
         merged[x] = merged.get(x, 0.0) + p

@@ -5,6 +5,7 @@ The oracle every later stage (automata, product checker, learner) is tested agai
 finite trace; :mod:`mitlc.semantics.lasso` evaluates infinite ultimately periodic words exactly.
 """
 
+from mitlc.semantics.episode import episode_formula, episode_success
 from mitlc.semantics.finite import (
     Letter,
     SemanticsError,
@@ -22,6 +23,8 @@ __all__ = [
     "SemanticsError",
     "Timeline",
     "Truth",
+    "episode_formula",
+    "episode_success",
     "evaluate_finite",
     "evaluate_lasso",
     "evaluate_on",

@@ -10,8 +10,10 @@ letters; a letter is the set of propositions true at that position, and position
 
 On a finite trace of ``n`` letters the positions past the end are neutral, as in rtamt's
 discrete-time offline semantics: ``U_I`` and ``F_I`` look for ``j`` in ``[i+lo, i+hi]`` and
-``[0, n)`` only (none there: false), ``G_I`` and ``R_I`` are their duals (none there: true), and
-``X q`` is true at the last position. Negation is exact, so ``!X q`` is false there.
+``[0, n)`` only (none there: false), ``G_I`` and ``R_I`` are their duals (none there: true,
+``G[k,k] q`` included), and ``X q`` is LTLf's strong next (De Giacomo and Vardi, IJCAI 2013),
+``F[1,1] q``: false at the last position. Negation is exact, so ``!X q`` (the weak next of
+``!q``) is true there.
 
 The evaluator works bottom-up over the distinct subformulas, one truth vector per subformula,
 on a :class:`Timeline` of canonical positions: a finite trace has nothing after its last position;
@@ -157,11 +159,12 @@ def _negate(values: Truth) -> Truth:
 
 
 def _next(operand: Truth, line: Timeline) -> Truth:
-    """``X q``: ``q`` at the following position; true at the last position of a finite trace."""
+    """``X q``: ``q`` at the following position; false at the last position of a finite trace
+    (strong)."""
     result = []
     for i in range(line.size):
         following = line.canonical(i + 1)
-        result.append(True if following is None else operand[following])
+        result.append(False if following is None else operand[following])
     return tuple(result)
 
 
@@ -199,7 +202,7 @@ def evaluate_finite(formula: ast.Formula, trace: Sequence[Letter]) -> Truth:
 
     Pointwise discrete-time semantics with rtamt's end-of-trace conventions (module docstring):
     positions past the end are neutral for ``U_I``/``F_I`` (false when none is left) and
-    ``G_I``/``R_I`` (true when none is left), and ``X q`` is true at the last position.
+    ``G_I``/``R_I`` (true when none is left), and ``X q`` is false at the last position.
     Raises :class:`SemanticsError` for an empty trace.
     """
     if not trace:

@@ -58,8 +58,8 @@ class TaskAutomaton(Protocol):
         """The targets of the epsilon jumps of ``state``, in order."""
         ...
 
-    def end(self, state: int) -> bool:
-        """Whether a trace that stops in ``state`` satisfies the formula
+    def end(self, state: int) -> int:
+        """What a trace that stops in ``state`` is worth: its end code
         (:attr:`mitlc.automata.DigitalState.end`)."""
         ...
 
@@ -116,7 +116,7 @@ class TaskMonitor:
         self._popcount_array = np.asarray(self._popcount, dtype=np.int64)
         self._memo: dict[tuple[int, int], tuple[int, int, int]] = {}
         self._verdicts: list[int] = []
-        self._ends: list[bool] = []
+        self._ends: list[int] = []
         self._jumps: list[tuple[int, ...]] = []
         self._letter_keys = np.zeros(0, dtype=np.int64)
         self._letter_columns = np.zeros(0, dtype=np.int64)
@@ -131,7 +131,7 @@ class TaskMonitor:
         self._marks = np.zeros((1, 1), dtype=np.int64)
         self._next_flat, self._marks_flat = self._next.reshape(-1), self._marks.reshape(-1)
         self._verdict_array = np.zeros(0, dtype=np.int64)
-        self._end_array = np.zeros(0, dtype=np.bool_)
+        self._end_array = np.zeros(0, dtype=np.int64)
         self._success_array = np.zeros(0, dtype=np.bool_)
         self._success_list: list[bool] = []
         self._rule_tables()
@@ -183,7 +183,7 @@ class TaskMonitor:
             self._reward_list[new * 3 + verdict],
             verdict,
             self._terminated_list[verdict],
-            self._success_list[target * 2 + (rounds > 0)],
+            self._success_of(target, after, rounds),
         )
 
     def jump(self, state: MonitorState, index: int) -> Outcome | None:
@@ -201,7 +201,7 @@ class TaskMonitor:
             float(rules.reward(0, verdict, self.rewards)),
             verdict,
             bool(rules.terminated(verdict)),
-            self._success_list[q * 2 + (state.rounds > 0)],
+            self._success_of(q, state.frontier, state.rounds),
         )
 
     def success(self, state: MonitorState) -> bool:
@@ -209,10 +209,17 @@ class TaskMonitor:
         of its verdict, rounds and end value)."""
         if state.q >= len(self._verdicts):
             self._learn_states(state.q)
-        return self._success_list[state.q * 2 + (state.rounds > 0)]
+        return self._success_of(state.q, state.frontier, state.rounds)
 
-    def end(self, q: int) -> bool:
-        """Whether a trace that stops in automaton state ``q`` satisfies the formula."""
+    def _success_of(self, q: int, frontier: int, rounds: int) -> bool:
+        """:func:`mitlc.task.rules.success` of a run in ``q`` with that frontier and rounds."""
+        if self._ends[q] <= 1:  # most states: the seen sets do not matter
+            return self._success_list[q]
+        seen = rules.seen_sets(frontier, rounds, self.all_sets)
+        return bool(rules.success(self._verdicts[q], seen, self._ends[q]))
+
+    def end(self, q: int) -> int:
+        """The end code of automaton state ``q`` (:mod:`mitlc.automata.ends`)."""
         if q >= len(self._ends):
             self._learn_states(q)
         return self._ends[q]
@@ -257,11 +264,11 @@ class TaskMonitor:
         found: IntArray = self._verdict_array[q]
         return found
 
-    def ends(self, q: IntArray) -> BoolArray:
-        """The end values of the automaton states ``q`` (:meth:`end`)."""
+    def ends(self, q: IntArray) -> IntArray:
+        """The end codes of the automaton states ``q`` (:meth:`end`)."""
         if len(q) and int(q.max()) >= len(self._end_array):
             self._learn_states(int(q.max()))
-        found: BoolArray = self._end_array[q]
+        found: IntArray = self._end_array[q]
         return found
 
     def read_batch(
@@ -291,7 +298,14 @@ class TaskMonitor:
             self._reward.take(new * 3 + verdict),
             verdict,
             self._terminated.take(verdict),
-            self._success_array.take(target * 2 + (rounds > 0)),
+            np.asarray(
+                rules.success(
+                    self._verdict_array.take(target),
+                    rules.seen_sets(after, rounds, self.all_sets),
+                    self._end_array.take(target),
+                ),
+                dtype=np.bool_,
+            ),
         )
 
     def _rule_tables(self) -> None:
@@ -334,20 +348,19 @@ class TaskMonitor:
         return found
 
     def _learn_states(self, q: int) -> None:
-        """Verdicts, end values, jumps and success of every state up to ``q``:
-        ``success[2 * state + done]`` for a run stopping there with (``done``) or without a
-        completed round, by :func:`mitlc.task.rules.success`."""
+        """Verdicts, end codes, jumps and success of every state up to ``q``:
+        ``success[state]`` for a run stopping there having seen no set, by
+        :func:`mitlc.task.rules.success`."""
         for state in range(len(self._verdicts), q + 1):
             self._verdicts.append(VERDICT_CODES[self.automaton.verdict(state)])
-            self._ends.append(bool(self.automaton.end(state)))
+            self._ends.append(int(self.automaton.end(state)))
             self._jumps.append(tuple(self.automaton.jumps(state)))
         self._verdict_array = np.asarray(self._verdicts, dtype=np.int64)
-        self._end_array = np.asarray(self._ends, dtype=np.bool_)
+        self._end_array = np.asarray(self._ends, dtype=np.int64)
         self._jump_count_array = np.array([len(j) for j in self._jumps], dtype=np.int64)
-        verdict = np.repeat(self._verdict_array, 2)
-        done = np.tile(np.array([0, 1], dtype=np.int64), len(self._verdicts))
-        end = np.repeat(self._end_array, 2).astype(np.int64)
-        self._success_array = np.asarray(rules.success(verdict, done, end), dtype=np.bool_)
+        self._success_array = np.asarray(
+            rules.success(self._verdict_array, 0, self._end_array), dtype=np.bool_
+        )
         self._success_list = self._success_array.tolist()
 
     def _column_of(self, letters: IntArray) -> IntArray:

@@ -10,12 +10,13 @@ definition of:
   often; the frontier is the sets seen in the current round, emptied when the round completes);
 * the **verdict** codes of an automaton state, and when an episode **terminates** (the task is
   decided);
-* **success** of an episode (:func:`success`), judged where it stops: it never reaches
-  *violated*, and it reaches *satisfied*, or completes a round of all acceptance sets, or the
-  finite trace it read satisfies the formula, the value of the state it stops in at the end of
-  a trace (:attr:`mitlc.automata.DigitalState.end`, :mod:`mitlc.automata.ends`: a deadline
-  still open fails, a safety window still open holds); a violation after a completed round is a
-  failure;
+* **success** of an episode (:func:`success`), judged where it stops (docs/episodes.md): it
+  never reaches *violated*, and it reaches *satisfied*, or it stops in a state whose end code
+  (:attr:`mitlc.automata.DigitalState.end`, :mod:`mitlc.automata.ends`) says that the finite
+  trace it read satisfies the task: every obligation still open is met at the end (a deadline
+  still open fails, a safety window still open holds, a request not yet answered fails, a
+  recurrence ``G F β`` owes one ``β``), and, after an epsilon jump, a round of the acceptance
+  sets was completed. A completed round never excuses an open obligation;
 * the task's **reward**: ``accept`` for each acceptance set new in the round, ``satisfied`` and
   ``violated`` on entering those states (a world's own terms, such as a cost per move, are the
   world's and are added by whoever steps it).
@@ -81,13 +82,27 @@ def terminated(verdict: T) -> T:
     return verdict != PENDING
 
 
-def success(verdict: T, rounds: T, end: T) -> T:
+END_FAILS, END_HOLDS = 0, 1
+"""End codes (:mod:`mitlc.automata.ends`): a stop there fails; succeeds. A code ``e > 1``:
+succeeds once every acceptance set of the mask ``e - 1`` has been seen."""
+
+
+def seen_sets(frontier: T, rounds: T, all_sets: int) -> T:
+    """The acceptance sets an episode has seen so far: its frontier, or every set once it has
+    completed a round (the frontier of the recursions, :func:`saturate`)."""
+    return frontier | all_sets * (rounds > 0)
+
+
+def success(verdict: T, seen: T, end: T) -> T:
     """The success of an episode that stops here (see the module docstring): in a state of
-    ``verdict`` whose value at the end of a trace is ``end``, after ``rounds`` completed rounds
-    (any positive number, or a "round completed" flag). The one definition of success: the
+    ``verdict`` whose end code is ``end``, having seen the acceptance sets ``seen``
+    (:func:`seen_sets`). The end code ``e`` of a pending state fails (0), or holds once the
+    sets of the mask ``e - 1`` have been seen (1: at once). The one definition of success: the
     monitor, the wrapper, the simulators, the exact evaluation and the checker's recursions
     all read it."""
-    return (verdict != VIOLATED) & ((verdict == SATISFIED) | (rounds > 0) | (end != 0))
+    needed = (end - 1) * (end > 0)
+    holds = (end > 0) & ((seen & needed) == needed)
+    return (verdict != VIOLATED) & ((verdict == SATISFIED) | holds)
 
 
 def reward(new: T, verdict: T, rewards: TaskRewards) -> Any:
@@ -101,15 +116,14 @@ def reward(new: T, verdict: T, rewards: TaskRewards) -> Any:
 
 
 def recursion_ends(
-    verdict: npt.NDArray[np.int64], end: npt.NDArray[np.bool_], num_sets: int
+    verdict: npt.NDArray[np.int64], end: npt.NDArray[np.int64], num_sets: int
 ) -> npt.NDArray[np.float64]:
     """The finite-horizon recursions' values when the horizon ends: ``values[mask, x]`` is the
-    :func:`success` of an episode ending in a state of ``verdict[x]`` and end value ``end[x]``
-    with the frontier ``mask``, where the mask of all sets stands for a completed round
-    (:func:`saturate`; with no acceptance sets no round ever completes)."""
-    masks = 1 << num_sets
-    done = ((np.arange(masks) == masks - 1) & (num_sets > 0)).astype(np.int64)
+    :func:`success` of an episode ending in a state of ``verdict[x]`` and end code ``end[x]``
+    with the frontier ``mask``, the sets seen (:func:`saturate`: the mask of all sets once a
+    round is completed)."""
+    seen = np.arange(1 << num_sets, dtype=np.int64)
     ends: npt.NDArray[np.float64] = success(
-        verdict[None, :], done[:, None], end[None, :].astype(np.int64)
+        verdict[None, :], seen[:, None], end[None, :].astype(np.int64)
     ).astype(np.float64)
     return ends

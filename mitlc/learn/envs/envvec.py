@@ -207,6 +207,7 @@ class VectorTask:
             env_ended=_entry(infos, final, done, "env_ended", np.zeros(self.num_envs, bool)),
             distances=_entry(infos, final, done, "distances", None) if shaped else None,
             distances_left=_entry(infos, final, done, "distances_left", None) if shaped else None,
+            episode_rounds=_entry(infos, final, done, "rounds", np.zeros(self.num_envs, int)),
         )
         self.returns[done] = 0.0
         self.steps = np.where(done, 0, steps)

@@ -66,8 +66,8 @@ class Tables:
     """Observation ids (cells for an MDP)."""
     verdict: IntArray
     """The verdict code of each product state (:func:`mitlc.product.explicit.product_verdicts`)."""
-    end: BoolArray
-    """The end value of each product state (:func:`mitlc.product.explicit.product_ends`)."""
+    end: IntArray
+    """The end code of each product state (:func:`mitlc.product.explicit.product_ends`)."""
     popcount: IntArray
     """:func:`mitlc.task.rules.popcounts` as an array."""
     starts: IntArray
@@ -226,6 +226,9 @@ class Step:
     """With a shield: whether the episode has taken a blocked action so far, this step
     included."""
     episode_cost: FloatArray | None = None
+    episode_rounds: IntArray | None = None
+    """The rounds of the acceptance sets each episode has completed so far, this step
+    included (complete for ended ones; docs/episodes.md)."""
     """With costs: what each episode has cost so far, this step included (complete for
     ended ones); the reward already has it taken off."""
 
@@ -377,7 +380,8 @@ class VecProduct:
             (self.steps >= t.horizon) | (self.actions_taken >= 4 * t.horizon + 4)
         )
         observation = np.where(jump, self.observation, self._observe(nxt))
-        success = rules.success(verdict, self.rounds, t.end[nxt])
+        seen = rules.seen_sets(mask, self.rounds, t.all_sets)
+        success = rules.success(verdict, seen, t.end[nxt])
         if t.cost is not None:
             paid = t.cost[index]
             reward = reward - paid
@@ -399,6 +403,7 @@ class VecProduct:
             blocked=blocked,
             strayed=None if blocked is None else self.strayed.copy(),
             episode_cost=None if t.cost is None else self.costs.copy(),
+            episode_rounds=self.rounds.copy(),
         )
         self.state, self.mask, self.observation = nxt, mask, observation
         self._shield_now = None

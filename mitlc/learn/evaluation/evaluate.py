@@ -76,6 +76,8 @@ class Evaluation:
     min_cost: float | None = None
     """In a finite world with costs: the least expected cost among the policies of best
     success within the horizon (``mitlc check``'s ``min_cost_horizon``)."""
+    mean_rounds: float = 0.0
+    """The episodes' mean number of completed rounds (docs/episodes.md)."""
 
     @property
     def success_rate(self) -> float:
@@ -105,6 +107,7 @@ class Evaluation:
             "success_rate": self.success_rate,
             "interval95": [low, high],
             "mean_return": self.mean_return,
+            "mean_rounds": self.mean_rounds,
             **({"mean_cost": self.mean_cost} if self.mean_cost is not None else {}),
             **({"min_cost_horizon": self.min_cost} if self.min_cost is not None else {}),
             "exact": self.exact,
@@ -165,6 +168,7 @@ def evaluate(
         successes=estimate.successes,
         mean_return=estimate.mean_return,
         mean_cost=estimate.mean_cost,
+        mean_rounds=estimate.mean_rounds,
         min_cost=min_cost,
         exact=exact,
         optimum=optimum,

@@ -49,7 +49,7 @@ def policy_success(product: Product, choices: IntArray, horizon: int) -> float:
     # completed. Both start as the success of an episode that ends there (mitlc.task.rules),
     # and a round that completes empties the frontier, as in every run of the task monitor.
     # With no step left the episode is over: no jump is taken there.
-    pending, done = _ends(product, rounds=0), _ends(product, rounds=1)
+    pending, done = _ends(product, done=False), _ends(product, done=True)
     end_pending, end_done = pending.copy(), done.copy()
     for r in range(1, horizon + 1):
         plans = [plan(choices if choices.ndim == 2 else choices[r - 1, d]) for d in (0, 1)]
@@ -98,11 +98,15 @@ class _Planner:
         return plans
 
 
-def _ends(product: Product, rounds: int) -> FloatArray:
-    """``values[mask, x]``: the success of an episode that ends in ``x`` with ``rounds``
-    completed rounds (every mask alike)."""
-    success = rules.success(product_verdicts(product), rounds, product_ends(product))
-    values: FloatArray = np.tile(success.astype(np.float64), ((1 << product.num_sets), 1))
+def _ends(product: Product, done: bool) -> FloatArray:
+    """``values[mask, x]``: the success of an episode that ends in ``x`` with the frontier
+    ``mask``, and with (``done``) or without a completed round."""
+    all_sets = (1 << product.num_sets) - 1
+    masks = np.arange(all_sets + 1, dtype=np.int64)[:, None]
+    seen = rules.seen_sets(masks, np.int64(done), all_sets)
+    verdicts, ends = product_verdicts(product)[None, :], product_ends(product)[None, :]
+    success = rules.success(verdicts, seen, ends)
+    values: FloatArray = np.asarray(success, dtype=np.float64)
     return values
 
 

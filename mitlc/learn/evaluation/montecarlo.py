@@ -62,6 +62,9 @@ class Estimate:
     mean_return: float
     mean_cost: float | None = None
     """The episodes' mean cost, in a world with costs (``None`` otherwise)."""
+    mean_rounds: float = 0.0
+    """The episodes' mean number of completed rounds of the acceptance sets (recurring tasks:
+    docs/episodes.md; 0 for a task without acceptance sets)."""
 
     @property
     def rate(self) -> float:
@@ -88,17 +91,18 @@ Progress = Callable[[int], None]
 
 def first_episodes(
     batch: Episodes, policy: Policy, progress: Progress | None = None
-) -> tuple[BoolArray, FloatArray, FloatArray | None]:
+) -> tuple[BoolArray, FloatArray, FloatArray | None, FloatArray]:
     """Step every slot of ``batch`` with ``policy`` until each has ended an episode; the
-    success, the return and (where the steps have costs) the cost of each slot's first
-    episode (later ones are not counted). ``progress`` is told how many slots have ended,
-    after each step that ends one."""
+    success, the return, (where the steps have costs) the cost and the completed rounds of
+    each slot's first episode (later ones are not counted). ``progress`` is told how many
+    slots have ended, after each step that ends one."""
     n = batch.num_envs
     policy.reset(n)
     ended = np.zeros(n, dtype=np.bool_)
     success = np.zeros(n, dtype=np.bool_)
     returns = np.zeros(n, dtype=np.float64)
     costs: FloatArray | None = None
+    rounds = np.zeros(n, dtype=np.float64)
     while not ended.all():
         step = batch.step(policy.act(batch))
         policy.observe(step)
@@ -109,10 +113,13 @@ def first_episodes(
         if paid is not None:
             costs = np.zeros(n) if costs is None else costs
             costs[first] = paid[first]
+        counted = getattr(step, "episode_rounds", None)
+        if counted is not None:
+            rounds[first] = np.asarray(counted)[first]
         ended |= step.done
         if progress is not None and first.any():
             progress(int(ended.sum()))
-    return success, returns, costs
+    return success, returns, costs, rounds
 
 
 def monte_carlo(
@@ -128,19 +135,21 @@ def monte_carlo(
     the ``episodes`` have ended, as they end."""
     if width < 1:
         raise ValueError(f"width: expected a positive integer, got {width}")
-    successes, total, cost = 0, 0.0, None
+    successes, total, cost, completed = 0, 0.0, None, 0.0
     for first in range(0, episodes, width):
         told = None if progress is None else _offset(progress, first)
-        success, returns, costs = first_episodes(
+        success, returns, costs, rounds = first_episodes(
             batches(min(width, episodes - first), first), policy, told
         )
         successes += int(success.sum())
         total += float(returns.sum())
+        completed += float(rounds.sum())
         if costs is not None:
             cost = (cost or 0.0) + float(costs.sum())
     count = max(episodes, 1)
     mean_cost = None if cost is None else cost / count
-    return Estimate(successes, max(episodes, 0), total / count if episodes > 0 else 0.0, mean_cost)
+    mean_return = total / count if episodes > 0 else 0.0
+    return Estimate(successes, max(episodes, 0), mean_return, mean_cost, completed / count)
 
 
 def _offset(progress: Progress, first: int) -> Progress:

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mitlc.files import write_atomically
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.rundir.files import read_metrics_rows
@@ -59,6 +61,7 @@ class Tally:
         self.shielded = False
         self.window_cost = 0.0
         self.costed = False
+        self.window_rounds = 0.0
 
     def count(self, step: Any) -> None:
         """Add the violations, and with a shield the blocked actions, of a step (a
@@ -69,6 +72,9 @@ class Tally:
         if paid is not None:
             self.costed = True
             self.window_cost += float(paid[step.done].sum())
+        rounds = getattr(step, "episode_rounds", None)
+        if rounds is not None:
+            self.window_rounds += float(np.asarray(rounds)[step.done].sum())
         if getattr(step, "blocked", None) is not None:
             self.shielded = True
             self.blocked += int(step.blocked.sum())
@@ -99,13 +105,14 @@ def log_window(metrics: Any, tally: Tally, epsilon: float) -> None:
     }
     if tally.costed:
         line["cost"] = round(tally.window_cost / max(tally.window_count, 1), 6)
+    line["rounds"] = round(getattr(tally, "window_rounds", 0.0) / max(tally.window_count, 1), 6)
     if tally.shielded:
         line["blocked_actions"] = tally.blocked
         line["preventable_violations"] = tally.preventable
     metrics.write(json.dumps(line) + "\n")
     metrics.flush()
     tally.window_count = tally.window_success = 0
-    tally.window_return = tally.window_cost = 0.0
+    tally.window_return = tally.window_cost = tally.window_rounds = 0.0
 
 
 def summary_of(
