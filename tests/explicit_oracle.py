@@ -40,6 +40,8 @@ class ExplicitProgression(Progression):
             return store.true if bool(letter >> lo & 1) == bool(hi) else store.false
         later_hi = hi if hi == INF else hi - 1
         if kind in (EVENTUALLY, ALWAYS):
+            if lo == hi == 1:  # a delay's last step: strong or weak, at the next letter
+                return store.point(kind, left)
             if lo > 0:
                 return store.temporal(kind, lo - 1, later_hi, left, keep_point=lo != hi)
             now = self.step(left, letter)

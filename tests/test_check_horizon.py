@@ -12,6 +12,7 @@ from mitlc.check import solve
 from mitlc.check.solve import pmax_horizon
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, build_product, product_ends
 from mitlc.syntax import to_text
+from mitlc.task import rules
 from mitlc.worlds.model import FloatArray, Sparse
 from tests.test_check import formulas, random_world
 
@@ -33,10 +34,10 @@ def plain_horizon(product: Product, horizon: int) -> list[FloatArray]:
             values[:, source] = np.maximum(values[:, source], values[:, target])
         return values
 
-    # an episode that stops pending succeeds by its state's end value, or by a completed round
-    start = np.tile(product_ends(product).astype(np.float64), (masks, 1))
-    if product.num_sets:
-        start[masks - 1] = 1.0
+    # an episode that stops pending succeeds by the one rule (mitlc.task.rules.success) of its
+    # state's end code and the sets seen (the mask)
+    seen = np.arange(masks, dtype=np.int64)[:, None]
+    start = rules.success(rules.PENDING, seen, product_ends(product)[None, :]).astype(np.float64)
     start[:, SATISFIED], start[:, VIOLATED] = 1.0, 0.0
     tables = [start]  # no step left: the episode is over, no jump is taken
     for _ in range(horizon):

@@ -17,6 +17,7 @@ from gymnasium.utils.env_checker import check_env
 from scipy.sparse import csr_matrix
 
 from mitlc.automata import DigitalAutomaton, DigitalState, translate
+from mitlc.automata.ends import holds_after
 from mitlc.check.solve import pmax_horizon
 from mitlc.product import ENV_ID, ProductEnv, build_product, make_env
 from mitlc.syntax import parse
@@ -170,13 +171,15 @@ def test_horizon_truncates_a_safe_episode() -> None:
 
 def one_state(num_sets: int, marks: tuple[int, ...], epsilon: bool = False) -> DigitalAutomaton:
     """A hand-built automaton over (a, b); with ``epsilon``: 0 -jump-> 1, and 1 is F G !a's
-    accepting state (a leads to the violated sink 2)."""
+    accepting state (a leads to the violated sink 2). A stop in the pending state (the
+    accepting one) succeeds once every set has been seen (its end code, mitlc.automata.ends)."""
     pending = DigitalState("x", "initial", "pending")
     if not epsilon:
+        pending = DigitalState("x", "initial", "pending", holds_after((1 << num_sets) - 1))
         return DigitalAutomaton.from_table(
             "x", "x", ("a", "b"), (pending,), 0, ((0,) * 4,), (marks,), num_sets
         )
-    accepting = DigitalState("G !a", "accepting", "pending")
+    accepting = DigitalState("G !a", "accepting", "pending", holds_after(1))
     sink = DigitalState("false", "initial", "violated")
     return DigitalAutomaton.from_table(
         "F G !a", "F G !a", ("a", "b"), (pending, accepting, sink), 0,

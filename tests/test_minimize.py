@@ -74,13 +74,17 @@ def test_a_disjunct_implied_by_another_is_dropped() -> None:
     assert len(store.forms[store.or_(early, store.temporal(EVENTUALLY, 0, 3, b))]) == 2
 
 
-def test_a_delay_is_not_dropped_for_a_window_around_it() -> None:
-    """On infinite words ``F[2,2] G a`` implies ``F[1,3] G a``, but not at the end of a trace
-    (the delay is worth its operand there, the window fails), so both stay."""
+def test_a_delay_is_dropped_for_a_window_of_its_strength_only() -> None:
+    """The strong delay ``F[2,2] G a`` implies ``F[1,3] G a`` on finite traces too (both fail
+    at the end): the disjunction is the window. The weak ``G[2,2] G a`` holds at the end where
+    ``F[1,3] G a`` fails, so both stay; it is implied by ``G[1,3] G a``."""
     store = TermStore(("a",))
     always = store.temporal(ALWAYS, 0, INF, store.literal(0, True))
-    delay, window = store.delay(2, always), store.temporal(EVENTUALLY, 1, 3, always)
-    assert len(store.forms[store.or_(delay, window)]) == 2
+    strong, window = store.delay(2, always), store.temporal(EVENTUALLY, 1, 3, always)
+    assert store.or_(strong, window) == window
+    weak = store.delay(2, always, strong=False)
+    assert len(store.forms[store.or_(weak, window)]) == 2
+    assert store.or_(weak, store.temporal(ALWAYS, 1, 3, always)) == weak
 
 
 # --- merging bisimilar states ---------------------------------------------------------------------

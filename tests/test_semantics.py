@@ -70,10 +70,13 @@ FINITE_CASES = [
     ("true", w("", "a"), "TT"),
     ("false", w("", "a"), "FF"),
     # X: true at the last position, and negation is exact there.
-    ("X a", w("", "a", ""), "TFT"),
-    ("!X a", w("", "a", ""), "FTF"),
-    ("X false", w("", ""), "FT"),
-    ("X X a", w("a", "a", ""), "FTT"),
+    ("X a", w("", "a", ""), "TFF"),  # LTLf's strong next: false at the last position
+    ("!X a", w("", "a", ""), "FTT"),
+    ("X false", w("", ""), "FF"),
+    ("X X a", w("a", "a", ""), "FFF"),
+    ("X true", w("", ""), "TF"),
+    ("G[1,1] a", w("", ""), "FT"),  # a window past the end holds, a single point too
+    ("F[1,1] a", w("", "a"), "TF"),
     # F and G: a max / min over the window cut to the trace; none left: false / true.
     ("F[1,2] a", w("a", "", "", "a", ""), "FTTFF"),
     ("F a", w("", "a", ""), "TTF"),
@@ -101,8 +104,9 @@ FINITE_CASES = [
     ("a R[3,5] !a", w("a", "a"), "TT"),
     # Nested: the end of the trace propagates.
     ("G[0,1] F[1,2] a", w("", "a", "", "a", "a"), "TTTFF"),
-    ("G (a -> X b)", w("a", "b", "a"), "TTT"),
-    ("G (a -> X b)", w("a", "", "a"), "FTT"),
+    ("G (a -> X b)", w("a", "b", "a"), "FFF"),  # the last request has no next letter
+    ("G (a -> X b)", w("a", "b", ""), "TTT"),
+    ("G (a -> X b)", w("a", "", "a"), "FFF"),
 ]
 
 
@@ -115,7 +119,7 @@ def test_holds_finite_reads_one_position() -> None:
     trace = w("", "a", "")
     assert holds_finite(parse("X a"), trace)
     assert not holds_finite(parse("X a"), trace, 1)
-    assert holds_finite(parse("X a"), trace, 2)
+    assert not holds_finite(parse("X a"), trace, 2)
 
 
 # --- lassos, by hand -----------------------------------------------------------------------------
@@ -217,7 +221,7 @@ def _nested_next(depth: int) -> ast.Formula:
 def test_deep_formulas() -> None:
     deep = _nested_next(200)
     assert evaluate_lasso(deep, lasso((), ("a", ""))) == truth("TF")
-    assert evaluate_finite(deep, w("", "", "")) == truth("TTT")  # X past the end: true
+    assert evaluate_finite(deep, w("", "", "")) == truth("FFF")  # X past the end: false
     mixed: ast.Formula = ast.Atom("a")
     for k in range(60):
         layers: list[ast.Formula] = [
@@ -275,7 +279,7 @@ def naive_finite(formula: ast.Formula, trace: tuple[Letter, ...], i: int) -> boo
         case ast.Iff(p, q):
             return at(p, i) == at(q, i)
         case ast.Next(p):
-            return i + 1 >= n or at(p, i + 1)
+            return i + 1 < n and at(p, i + 1)  # strong
         case ast.Eventually(interval, q):
             return any(at(q, j) for j in _window(i, interval, n - 1))
         case ast.Always(interval, q):
