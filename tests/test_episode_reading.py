@@ -276,3 +276,44 @@ def test_pmax_horizon_the_exact_evaluation_and_the_wrapper_agree_with_the_refere
                     if terminated or truncated:
                         break
                 assert info["success"] == successes[word], (to_text(formula), word)
+
+
+# -- mitlc check on the issue's worlds -------------------------------------------------------------
+
+LINE = """name: line
+grid: {rows: 1, cols: 3}
+blocked: BLOCKED
+labels: {a: [[0, 2]], b: [[0, 0]]}
+start: [0, 0]
+actions: [left, right, stay]
+motion: {intended: 1.0, sideways: 0.0}
+spec: {formula: "G F a"}
+reward: {satisfied: 1, accept: 1, violated: 0, move: 0}
+horizon: HORIZON
+"""
+
+
+def _pmax_horizon(tmp_path: Any, formula: str, horizon: int, blocked: bool) -> float:
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    world = tmp_path / f"line-{horizon}-{blocked}.yaml"
+    text = LINE.replace("HORIZON", str(horizon)).replace("BLOCKED", "[[0, 1]]" if blocked else "[]")
+    world.write_text(text)
+    result = CliRunner().invoke(app, ["check", str(world), "-e", formula])
+    assert result.exit_code == 0, result.output
+    (line,) = [x for x in result.output.splitlines() if x.startswith("pmax_horizon")]
+    return float(line.split()[1])
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3, 4, 6, 10])
+def test_check_gives_the_reading_on_the_issue_worlds(tmp_path: Any, horizon: int) -> None:
+    """``a`` unreachable: ``G F a`` never succeeds, nor ``F G b & F[0,3] a`` at any horizon
+    (it once gave 1.0 at horizons 1-3); reachable in two moves (read at the third letter)."""
+    assert _pmax_horizon(tmp_path, "G F a", horizon, blocked=True) == 0.0
+    assert _pmax_horizon(tmp_path, "F G b & F[0,3] a", horizon, blocked=True) == 0.0
+    reachable = float(horizon >= 3)
+    assert _pmax_horizon(tmp_path, "G F a", horizon, blocked=False) == reachable
+    assert _pmax_horizon(tmp_path, "G F a & G F b", horizon, blocked=False) == reachable
+    assert _pmax_horizon(tmp_path, "G F a & F[0,3] b", horizon, blocked=False) == reachable
