@@ -317,3 +317,28 @@ def test_check_gives_the_reading_on_the_issue_worlds(tmp_path: Any, horizon: int
     assert _pmax_horizon(tmp_path, "G F a", horizon, blocked=False) == reachable
     assert _pmax_horizon(tmp_path, "G F a & G F b", horizon, blocked=False) == reachable
     assert _pmax_horizon(tmp_path, "G F a & F[0,3] b", horizon, blocked=False) == reachable
+
+
+def test_rounds_are_reported_beside_success(tmp_path: Any) -> None:
+    """A patrol between ``a`` and ``b`` (two moves apart), 12 steps: a learned policy completes
+    rounds, which ``metrics.jsonl`` and ``eval --json`` report beside the success rate."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    world = tmp_path / "patrol.yaml"
+    world.write_text(LINE.replace("HORIZON", "12").replace("BLOCKED", "[]"))
+    run = tmp_path / "run"
+    runner = CliRunner()
+    train = ["train", str(world), "-e", "G F a & G F b", "--algo", "q", "--out", str(run)]
+    result = runner.invoke(app, [*train, "--set", "q.episodes=3000"])
+    assert result.exit_code == 0, result.output
+    rows = [json.loads(x) for x in (run / "metrics.jsonl").read_text().splitlines()]
+    assert rows and all("rounds" in row for row in rows)
+    assert rows[-1]["rounds"] > 0
+    result = runner.invoke(app, ["eval", str(run), "--json", "--episodes", "200"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output[result.output.index("{") :])
+    assert summary["success_rate"] == 1.0 and summary["mean_rounds"] >= 2.0

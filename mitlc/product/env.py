@@ -48,7 +48,7 @@ from mitlc.automata import DigitalAutomaton, translate
 from mitlc.gym.wrapper import PENDING, TaskObs, TaskWrapper
 from mitlc.product.explicit import Product, automaton_letters
 from mitlc.syntax import parse
-from mitlc.task import VERDICT_NAMES
+from mitlc.task import VERDICT_NAMES, rules
 from mitlc.task.costs import StepTable, TransitionCosts, world_cost
 from mitlc.task.potential import world_potential
 from mitlc.worlds import World, load_world
@@ -218,7 +218,7 @@ class _ProductShield:
         x = int(self.states[at])
         lo, hi = int(self.product.choice_ptr[x]), int(self.product.choice_ptr[x + 1])
         count = min(hi - lo, width)
-        mask = self.all_sets if rounds > 0 else frontier
+        mask = rules.seen_sets(frontier, rounds, self.all_sets)
         choices = np.arange(lo, lo + count)
         allowed[:count] = self.shield.allowed(np.array(remaining), np.array(mask), choices)
         return allowed

@@ -333,7 +333,7 @@ class VecProduct:
         t = self.tables
         assert t.shield is not None
         remaining = t.horizon - self.steps
-        mask = np.where(self.rounds > 0, t.all_sets, self.mask)
+        mask = rules.seen_sets(self.mask, self.rounds, t.all_sets)
         if isinstance(t.shield, ObservedShield):
             seen = t.shield.actions(remaining, mask, self.observation, self.automaton)
             allowed = np.ones((self.num_envs, t.num_actions), dtype=np.bool_)
