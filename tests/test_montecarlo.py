@@ -142,7 +142,7 @@ def test_progress_counts_the_episodes_of_every_batch_as_they_end(gamble: Any) ->
 
 
 def test_first_episodes_counts_each_slot_once(gamble: Any) -> None:
-    success, returns, costs = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
+    success, returns, costs, _ = first_episodes(batches(gamble, 1)(50, 0), Uniform(0))
     assert costs is None  # a world without costs
     assert success.shape == returns.shape == (50,)
     assert (returns == np.where(success, 0.0, -1.0)).all()
