@@ -15,6 +15,7 @@ from mitlc.cli_common import (
     TaskExprOpt,
     TaskSpecOpt,
     TimeLimitOpt,
+    TrustWorldOpt,
     UsageError,
     command_deadline,
     json_dumps,
@@ -73,6 +74,7 @@ def check_command(
         ),
     ] = DEFAULT_MAX_PRODUCT_STATES,
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
+    trust_world: TrustWorldOpt = False,
 ) -> None:
     """Check a world exactly: the best probability of doing its task, and a policy for it."""
     from mitlc.automata import LazyAutomaton

@@ -50,18 +50,35 @@ TaskExprOpt = Annotated[
 ]
 
 
+TrustWorldOpt = Annotated[
+    bool,
+    typer.Option(
+        "--trust-world",
+        help="Trust the world file as your own code: allow wrappers from any installed "
+        "package and arguments that name files (docs/envs.md, 'Trust model').",
+    ),
+]
+
+
 class UsageError(MitlcError):
     """The command line names no spec, or two."""
 
 
 def reports_errors(command: Callable[P, R]) -> Callable[P, R]:
     """Print mitlc's errors (and unreadable files, and memory that could not be had) as a
-    message, exit 1, never a traceback; and give the command its ``--memory-limit``
-    (:func:`mitlc.cli_memory.with_memory_limit`)."""
+    message, exit 1, never a traceback; give the command its ``--memory-limit``
+    (:func:`mitlc.cli_memory.with_memory_limit`); and run a command given ``--trust-world``
+    (a ``trust_world`` parameter: :data:`TrustWorldOpt`) with world files trusted
+    (:func:`mitlc.worlds.trust.trusting`)."""
 
     @functools.wraps(command)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
+            if kwargs.get("trust_world"):  # --trust-world, for this command only
+                from mitlc.worlds.trust import trusting
+
+                with trusting():
+                    return command(*args, **kwargs)
             return command(*args, **kwargs)
         except MitlcError as err:
             typer.echo(err.render(), err=True)

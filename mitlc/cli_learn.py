@@ -18,6 +18,7 @@ import typer
 from mitlc.cli_common import (
     TaskExprOpt,
     TaskSpecOpt,
+    TrustWorldOpt,
     command_deadline,
     task_formula,
     time_limit_option,
@@ -203,6 +204,7 @@ def train_command(
             "seconds (0: no limit); the training itself runs its episodes (Ctrl-C stops it).",
         ),
     ] = DEFAULT_TIME_LIMIT,
+    trust_world: TrustWorldOpt = False,
 ) -> None:
     """Learn a policy for a world's task; report it beside the exact optimum."""
     from mitlc.learn.bounds import check_option
@@ -386,6 +388,7 @@ def eval_command(
             "POMDP bounds that run out of time are left out.",
         ),
     ] = DEFAULT_TIME_LIMIT,
+    trust_world: TrustWorldOpt = False,
 ) -> None:
     """Measure a run's policy (success with a 95% interval) beside the exact optimum."""
     from mitlc.learn.bounds import check_option
@@ -411,6 +414,7 @@ def plot_command(
             "Stop setting the run up (its task, its product) after this many seconds (0: no limit)."
         ),
     ] = DEFAULT_TIME_LIMIT,
+    trust_world: TrustWorldOpt = False,
 ) -> None:
     """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
     from mitlc.learn.bounds import check_option

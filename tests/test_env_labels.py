@@ -193,12 +193,14 @@ def test_a_world_file_imports_an_installed_package_by_name(
         ("{id: 'no_such_module_x:Foo-v0'}", "env.id: no installed module 'no_such_module_x'"),
         ("{id: '/tmp/evil.py:Foo-v0'}", "env.id: '/tmp/evil.py' is not a module's dotted name"),
         ("{id: mitlc/Task-v0}", "env.id: mitlc/Task-v0 is mitlc's own"),
-        ("{id: MitlcTest/Probe-v0, wrappers: ['mitlc_test_envs:NOT_A_WRAPPER']}",
+        ("{import: [mitlc_test_envs], id: MitlcTest/Probe-v0, "
+         "wrappers: ['mitlc_test_envs:NOT_A_WRAPPER']}",
          "env.wrappers[0]: mitlc_test_envs.NOT_A_WRAPPER is a int, not a gymnasium.Wrapper"),
         ("{id: MitlcTest/Probe-v0, wrappers: ['mitlc_test_envs.Recorder']}",
          "env.wrappers[0]: expected module:Class"),
-        ("{id: MitlcTest/Probe-v0, wrappers: [{class: 'mitlc_test_envs:Recorder', "
-         "kwargs: {nope: 1}}]}", "env.wrappers[0]: mitlc_test_envs:Recorder cannot wrap the env"),
+        ("{import: [mitlc_test_envs], id: MitlcTest/Probe-v0, wrappers: [{class: "
+         "'mitlc_test_envs:Recorder', kwargs: {nope: 1}}]}",
+         "env.wrappers[0]: mitlc_test_envs:Recorder cannot wrap the env"),
     ],
 )  # fmt: skip
 def test_what_a_world_file_may_not_import_or_make_is_refused(
@@ -213,7 +215,8 @@ def test_wrappers_are_applied_in_order_inside_the_task_wrapper(
     tmp_path: Path, package: Any
 ) -> None:
     recorder = "{class: 'mitlc_test_envs:Recorder', kwargs: {tag: %s}}"
-    env = f"{{id: MitlcTest/Probe-v0, wrappers: [{recorder % 'first'}, {recorder % 'second'}]}}"
+    wrappers = f"[{recorder % 'first'}, {recorder % 'second'}]"
+    env = f"{{import: [mitlc_test_envs], id: MitlcTest/Probe-v0, wrappers: {wrappers}}}"
     task = load_env_task(world(tmp_path, env))
     wrapped = task.make(translate(parse("F[0,8] a")))
     assert wrapped.unwrapped.wrapped == ["first", "second"]

@@ -12,8 +12,10 @@ as :class:`~mitlc.labels.LabelDeclarationError` messages do, and says what was f
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from mitlc.labels.forms import Labeller
 from mitlc.labels.values import (
@@ -21,6 +23,7 @@ from mitlc.labels.values import (
     PUBLIC,
     AttrPath,
     Bound,
+    Code,
     InfoPath,
     Region,
     Select,
@@ -28,6 +31,7 @@ from mitlc.labels.values import (
     Test,
     Truthy,
     Value,
+    attribute,
     follow,
     number,
     show_path,
@@ -44,22 +48,40 @@ def _where(labeller: Labeller, proposition: str, i: int, field: str) -> str:
 
 def attr_problems(labeller: Labeller, env: Any) -> list[str]:
     """What is wrong with the ``attr`` paths of ``labeller`` on ``env`` (``env.unwrapped``,
-    after ``reset``)."""
+    after ``reset``): a step that is not there, or that is code (a property, a method, a
+    descriptor: :func:`mitlc.labels.values.attribute`), or a value that does not suit its
+    test."""
     found = []
     for proposition, i, form in labeller.values():
         if isinstance(form.source, AttrPath):
             where = _where(labeller, proposition, i, "attr")
-            problem = _walk(env, form.source.steps, True, "env.unwrapped")
-            if problem is None:
-                problem = _suits(env, form)
+            problem = _safely(_form_problem, env, form, form.source.steps)
             if problem:
                 found.append(f"{where}: {problem}")
     for where, source in _guide_ends(labeller):
         if isinstance(source, AttrPath):
-            problem = _guide_problem(env, source, "env.unwrapped")
+            problem = _safely(_guide_problem, env, source, source.steps)
             if problem:
                 found.append(f"{where}: {problem}")
     return found
+
+
+def _form_problem(env: Any, form: Value) -> str | None:
+    """Why the ``attr`` path of ``form`` cannot be read on ``env``, or its value tested."""
+    assert isinstance(form.source, AttrPath)
+    return _walk(env, form.source.steps, True, "env.unwrapped") or _suits(env, form)
+
+
+def _safely(check: Callable[[Any, Any], str | None], env: Any, what: Any,
+            steps: Sequence[Step]) -> str | None:  # fmt: skip
+    """``check(env, what)``, or one line saying what went wrong reading ``steps`` (the env's
+    own code, a value's ``repr`` or ``len``, may raise anything)."""
+    try:
+        return check(env, what)
+    except Exception as err:
+        text = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
+        what = f"{type(err).__name__}: {text}" if text else type(err).__name__
+        return f"reading env.unwrapped.{show_path(steps)} failed ({what})"
 
 
 def _guide_ends(labeller: Labeller) -> list[tuple[str, AttrPath | InfoPath]]:
@@ -72,7 +94,9 @@ def _guide_ends(labeller: Labeller) -> list[tuple[str, AttrPath | InfoPath]]:
     return found
 
 
-def _guide_problem(root: Any, source: AttrPath | InfoPath, name: str) -> str | None:
+def _guide_problem(
+    root: Any, source: AttrPath | InfoPath, name: str = "env.unwrapped"
+) -> str | None:
     """Why a guide's end cannot be read as a position from ``root``."""
     attributes = isinstance(source, AttrPath)
     problem = _walk(root, source.steps, attributes, name)
@@ -142,8 +166,10 @@ def _missing(value: Any, step: Step, attributes: bool, name: str, done: str) -> 
             return f"{where} is a {kind}, not a list to select [{step.name}={step.value}] in"
         return f"no entry of {where} (a {kind} of {len(value)}) has {step.name} = {step.value!r}"
     if isinstance(step, int):
-        size = len(value) if hasattr(value, "__len__") else None
         kind = type(value).__name__
+        if not isinstance(value, Mapping | Sequence | np.ndarray) or isinstance(value, str):
+            return f"{where} is a {kind}, not a list, an array or a mapping to index"
+        size = len(value)
         return f"index {step} is out of range at {where} (a {kind}" + (
             f" of length {size})" if size is not None else ")"
         )
@@ -152,6 +178,11 @@ def _missing(value: Any, step: Step, attributes: bool, name: str, done: str) -> 
         return f"{where} has no key {step!r}{_hint(step, keys)} (keys: {_listed(keys)})"
     if not attributes:
         return f"{where} is a {type(value).__name__}, not a mapping with key {step!r}"
+    code = attribute(value, step)
+    if isinstance(code, Code):
+        return (f"{where}.{step} is a {code.kind} of {type(value).__name__}: reading it runs "
+                "code; attr: reads data (an attribute the object holds, a dataclass field, an "
+                "array, a list or a mapping), so name the attribute that holds the value")
     names = sorted(n for n in dir(value) if PUBLIC.match(n))
     return (f"{where} (a {type(value).__name__}) has no attribute {step!r}{_hint(step, names)} "
             f"(attributes: {_listed(names)})")  # fmt: skip

@@ -12,13 +12,19 @@ form false, as a missing ``info`` key always has; at set-up the paths are checke
 env (:mod:`mitlc.labels.probe`).
 
 Paths are data, never code: each step is a public attribute name (no leading ``_``), a mapping
-key, or an ``[index]``; nothing is called.
+key, or an ``[index]``; nothing is called. An attribute is read as
+:func:`inspect.getattr_static` finds it, never through ``getattr``: a value in the object's
+``__dict__`` or a ``__slots__`` field, or a plain class attribute (data); a property, a method
+or any other descriptor (whose reading would run code: a generator seeded on first read, an
+import) is not read (:func:`attribute`), and :mod:`mitlc.labels.probe` names it at set-up.
 """
 
 from __future__ import annotations
 
+import inspect
 import math
 import re
+import types
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -114,22 +120,76 @@ def show_path(steps: Sequence[Step]) -> str:
     return out
 
 
+class Code(NamedTuple):
+    """What an attribute holds where reading it would run code: its kind (``property``,
+    ``method``, ``descriptor``)."""
+
+    kind: str
+
+
+_METHODS = (types.FunctionType, types.BuiltinFunctionType, types.MethodType,
+            types.MethodDescriptorType, types.WrapperDescriptorType,
+            types.ClassMethodDescriptorType, staticmethod, classmethod)  # fmt: skip
+
+
+def attribute(value: Any, name: str) -> Any:
+    """The attribute ``name`` of ``value`` if it is data (:data:`MISSING` if there is none, a
+    :class:`Code` if reading it would run code), found without running any
+    (:func:`inspect.getattr_static`): a value of the instance (its ``__dict__``, a ``__slots__``
+    field), or a class attribute that is not a descriptor."""
+    if not PUBLIC.match(name):
+        return MISSING
+    try:
+        found = inspect.getattr_static(value, name, MISSING)
+    except Exception:  # an odd object (a class whose __dict__ is itself code)
+        return MISSING
+    if found is MISSING:
+        return MISSING
+    if isinstance(found, types.MemberDescriptorType):  # a __slots__ field: the C getter
+        try:
+            return found.__get__(value, type(value))
+        except AttributeError:  # a slot not set
+            return MISSING
+    if isinstance(found, property | types.GetSetDescriptorType):
+        return Code("property")
+    if isinstance(found, _METHODS):
+        return Code("method")
+    if _in_instance(value, name):
+        return found  # data the instance holds, whatever it is
+    if hasattr(type(found), "__get__"):
+        return Code("descriptor")
+    return found
+
+
+def _in_instance(value: Any, name: str) -> bool:
+    """Whether ``name`` is a key of the instance's own ``__dict__``."""
+    try:
+        own = object.__getattribute__(value, "__dict__")
+    except AttributeError:
+        return False
+    return isinstance(own, dict) and name in own
+
+
 def step_into(value: Any, step: Step, attributes: bool) -> Any:
-    """One step of a path from ``value`` (:data:`MISSING` where there is nothing): a mapping's
-    key, a sequence's index, or (``attributes``) a public attribute."""
+    """One step of a path from ``value`` (:data:`MISSING` where there is nothing, or where
+    it cannot be read as data): a mapping's key, a sequence's index, or (``attributes``) a
+    public attribute that holds data (:func:`attribute`)."""
     if value is None:
         return MISSING
     if isinstance(step, Select):
         return _select(value, step, attributes)
-    if isinstance(step, int):
-        try:
-            return value[step]
-        except (IndexError, KeyError, TypeError):
+    try:
+        if isinstance(step, int):
+            if isinstance(value, Mapping | Sequence | np.ndarray) and not isinstance(value, str):
+                return value[step]
             return MISSING
-    if isinstance(value, Mapping):
-        return value.get(step, MISSING)
-    if attributes and PUBLIC.match(step):
-        return getattr(value, step, MISSING)
+        if isinstance(value, Mapping):
+            return value.get(step, MISSING)
+    except Exception:  # an index out of range, a key missing, a container's own error
+        return MISSING
+    if attributes:
+        found = attribute(value, step)
+        return MISSING if isinstance(found, Code) else found
     return MISSING
 
 

@@ -7,11 +7,16 @@ as ``gymnasium.make("module:EnvId")`` does, and nothing else runs code.
 * ``env.import: [minigrid, highway_env]`` imports those modules (whose import registers their
   envs); ``env.id`` may also be gymnasium's ``"module:EnvId"``. A module is named by dotted
   Python identifiers only (never a file path), found on ``sys.path`` as Python finds any
-  installed package (mitlc adds nothing to it), and an import that fails is an error naming
-  the field.
+  installed package (mitlc adds nothing to it), never imported from the current directory or
+  the world file's folder (:func:`mitlc.worlds.trust.local_origin`, checked on each dotted
+  prefix before it is imported), and an import that fails is an error naming the field.
 * ``env.wrappers: ["minigrid.wrappers:ImgObsWrapper", {class: "module:Class", kwargs: {...}}]``
   wraps the made env with each class in turn (before the task wrapper, which is outermost);
-  each must be a subclass of ``gymnasium.Wrapper``, and its arguments YAML values.
+  each must be a subclass of ``gymnasium.Wrapper`` from ``gymnasium.wrappers`` or a package
+  the file names, and its arguments YAML values.
+* No argument (``env.kwargs``, a wrapper's ``kwargs``) names a file or a ``module:name``
+  (:func:`mitlc.worlds.trust.path_arguments`); ``--trust-world`` lifts this rule and the
+  wrappers' (:mod:`mitlc.worlds.trust`).
 * Ids that make another env named in their arguments (shimmy's compatibility layers) and
   mitlc's own ids (``mitlc/...``, made from world files, not named in one) are refused; an own
   id is refused before anything is imported.
@@ -35,9 +40,11 @@ import importlib.util
 import re
 import sys
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
+from mitlc.worlds import trust
 from mitlc.worlds.grid import FieldPath
 from mitlc.worlds.schema import Env, WrapperEntry
 
@@ -93,20 +100,15 @@ def check_module_name(name: object, where: FieldPath) -> None:
         raise EnvMakeError([(where, message)])
 
 
-def import_named(name: str, where: FieldPath) -> Any:
+def import_named(name: str, where: FieldPath, folder: Path | None = None) -> Any:
     """The installed module ``name`` (dotted identifiers), imported; an :class:`EnvMakeError`
-    at ``where`` if the name is not a module name, is not installed or fails to import."""
+    at ``where`` if the name is not a module name, is not installed, lies in the current
+    directory or the world's ``folder`` (each dotted prefix is found and checked before it is
+    imported) or fails to import."""
     check_module_name(name, where)
-    try:
-        with quiet():
-            found = importlib.util.find_spec(name)
-    except (ImportError, ValueError) as err:
-        found, problem = None, reason(err)
-    else:
-        problem = ""
-    if found is None:
-        hint = f" ({problem})" if problem else " (pip install it, or check the name)"
-        raise EnvMakeError([(where, f"no installed module {name!r}{hint}")])
+    parts = name.split(".")
+    for k in range(1, len(parts) + 1):
+        _find_installed(".".join(parts[:k]), name, where, folder)
     try:
         with quiet(), contextlib.redirect_stdout(sys.stderr):  # keep stdout for mitlc's output
             return importlib.import_module(name)
@@ -114,19 +116,52 @@ def import_named(name: str, where: FieldPath) -> Any:
         raise EnvMakeError([(where, f"importing {name!r} failed: {reason(err)}")]) from None
 
 
-def make_env(settings: Env) -> Any:
+def _find_installed(name: str, whole: str, where: FieldPath, folder: Path | None) -> None:
+    """Find the module ``name`` (a prefix of ``whole``; its parent is imported by now) and
+    refuse it where it is not installed: not found, or local (in the current directory or the
+    world's ``folder``)."""
+    try:
+        with quiet():
+            found = importlib.util.find_spec(name)
+    except Exception as err:  # a parent package's import may raise anything
+        found, problem = None, reason(err)
+    else:
+        problem = ""
+    if found is None:
+        hint = f" ({problem})" if problem else " (pip install it, or check the name)"
+        raise EnvMakeError([(where, f"no installed module {whole!r}{hint}")])
+    root = trust.local_origin(found.origin if found.has_location else None,
+                              trust.roots_of(folder))  # fmt: skip
+    if root is not None:
+        what = "the current directory" if root == Path.cwd().resolve() else "the world's folder"
+        message = (f"module {name!r} is a file in {what}, not an installed package: a world "
+                   "file imports installed packages only")  # fmt: skip
+        raise EnvMakeError([(where, message)])
+
+
+def make_env(settings: Env, folder: Path | None = None) -> Any:
     """The env of ``settings`` (see the module docstring), made and wrapped; an
-    :class:`EnvMakeError` at the field at fault if it cannot be."""
+    :class:`EnvMakeError` at the field at fault if it cannot be. ``folder``: the world file's,
+    from which no module is imported."""
     with quiet():
         import gymnasium
     module, env_id = split_id(settings.id, ENV_ID)
     for i, name in enumerate(settings.imports):
-        import_named(name, ("env", "import", i))
+        import_named(name, ("env", "import", i), folder)
     if module:
-        import_named(module, ENV_ID)
+        import_named(module, ENV_ID, folder)
     _check_id(env_id, gymnasium.registry, ENV_ID)
     where: FieldPath = ("env", "kwargs")
-    kwargs = nested_ids(gymnasium.registry[env_id], settings.kwargs, where, gymnasium.registry)
+    kwargs = nested_ids(gymnasium.registry[env_id], settings.kwargs, where, gymnasium.registry,
+                        folder)
+    refused = trust.path_arguments(kwargs, where, gymnasium.registry)
+    named = [*settings.imports, *([module] if module else [])]
+    for i, entry in enumerate(settings.wrappers):
+        wrapper: FieldPath = ("env", "wrappers", i)
+        _wrapper_class(entry, (*wrapper, "class") if entry.kwargs else wrapper, named)
+        refused += trust.path_arguments(entry.kwargs, (*wrapper, "kwargs"), gymnasium.registry)
+    if refused:
+        raise EnvMakeError(refused)
     try:
         with quiet():
             env = gymnasium.make(env_id, **kwargs)
@@ -134,7 +169,7 @@ def make_env(settings: Env) -> Any:
         at: FieldPath = where if settings.kwargs else ENV_ID
         raise EnvMakeError([(at, f"{env_id} cannot be made: {reason(err)}")]) from None
     for i, entry in enumerate(settings.wrappers):
-        env = _wrap(env, entry, ("env", "wrappers", i), gymnasium.Wrapper)
+        env = _wrap(env, entry, ("env", "wrappers", i), gymnasium.Wrapper, folder)
     return env
 
 
@@ -154,7 +189,11 @@ def split_id(text: object, where: FieldPath) -> tuple[str, str]:
 
 
 def nested_ids(
-    spec: Any, kwargs: Mapping[str, Any], where: FieldPath, registry: Any
+    spec: Any,
+    kwargs: Mapping[str, Any],
+    where: FieldPath,
+    registry: Any,
+    folder: Path | None = None,
 ) -> dict[str, Any]:
     """``kwargs`` (at ``where``) of the registered env ``spec``, with the id of another env
     that its entry point makes (:data:`NESTED`) checked as ``env.id`` is, its module imported by
@@ -169,13 +208,14 @@ def nested_ids(
         at: FieldPath = (*where, id_name)
         module, inner = split_id(out[id_name], at)
         if module:
-            import_named(module, at)
+            import_named(module, at, folder)
         _check_id(inner, registry, at)
         out[id_name] = inner
     more = out.get(kwargs_name)
     inner_id = inner.rpartition(":")[2] if isinstance(inner, str) else None
     if isinstance(more, Mapping) and inner_id in registry:
-        out[kwargs_name] = nested_ids(registry[inner_id], more, (*where, kwargs_name), registry)
+        at = (*where, kwargs_name)
+        out[kwargs_name] = nested_ids(registry[inner_id], more, at, registry, folder)
     return out
 
 
@@ -207,13 +247,29 @@ def _check_id(env_id: str, registry: Any, where: FieldPath) -> None:
         raise EnvMakeError([(where, message)])
 
 
-def _wrap(env: Any, entry: WrapperEntry, where: FieldPath, base: type[Any]) -> Any:
-    """``env`` wrapped by the entry's class with its arguments."""
-    at: FieldPath = (*where, "class") if entry.kwargs else where
+def _wrapper_class(entry: WrapperEntry, at: FieldPath, named: Sequence[str]) -> tuple[str, str]:
+    """``(module, class)`` of a wrapper entry, refused (at ``at``) unless it reads as
+    ``module:Class`` of ``gymnasium.wrappers`` or of a package the file names (``named``)."""
     module_name, sep, class_name = entry.cls.partition(":")
     if not sep or not CLASS.match(class_name):
         raise EnvMakeError([(at, f"expected module:Class, got {entry.cls!r}")])
-    module = import_named(module_name, at)
+    check_module_name(module_name, at)
+    if not trust.wrapper_allowed(module_name, named):
+        message = (f"{module_name} is neither gymnasium.wrappers nor a package the file names "
+                   f"(env.import): a world file runs only the code it declares; list the package "
+                   f"under env.import, or {trust.TRUST_HINT}")  # fmt: skip
+        raise EnvMakeError([(at, message)])
+    return module_name, class_name
+
+
+def _wrap(
+    env: Any, entry: WrapperEntry, where: FieldPath, base: type[Any], folder: Path | None
+) -> Any:
+    """``env`` wrapped by the entry's class with its arguments (its module checked by
+    :func:`_wrapper_class` before; none from the world's ``folder``)."""
+    at: FieldPath = (*where, "class") if entry.kwargs else where
+    module_name, _, class_name = entry.cls.partition(":")
+    module = import_named(module_name, at, folder)
     cls = getattr(module, class_name, None)
     if not (isinstance(cls, type) and issubclass(cls, base)) or cls is base:
         what = ("not there" if cls is None else "a class" if isinstance(cls, type)

@@ -47,6 +47,8 @@ class EnvTask:
     rewards: Rewards
     is_pomdp: bool = False
     """Unknown for an env: the learner named in the file or on the command line decides."""
+    folder: Path | None = None
+    """The world file's folder, from which no module is imported."""
 
     def make(self, automaton: Any, *, flatten: bool = False, **options: Any) -> Any:
         """A fresh env wrapped with the task (``automaton``: the task compiled once;
@@ -54,7 +56,7 @@ class EnvTask:
         from mitlc.gym import TaskWrapper
 
         return TaskWrapper(
-            gym_world.make_env(self.env),
+            gym_world.make_env(self.env, self.folder),
             automaton,
             self.labels,
             rewards=self.rewards,
@@ -129,6 +131,7 @@ def load_env_task(path: str | Path, spec: str | None = None) -> EnvTask:
         horizon=world.horizon,
         discount=world.discount,
         rewards=world.reward.rewards(),
+        folder=path.parent,
     )
     try:
         found = gym_world.form_problems(world.labels, env.observation_space)
@@ -169,6 +172,6 @@ def _made(path: Path, source: Any, settings: Env) -> Any:
     from mitlc.worlds.load import WorldError
 
     try:
-        return gym_world.make_env(settings)
+        return gym_world.make_env(settings, path.parent)
     except gym_world.GymWorldError as err:
         raise WorldError(str(path), [source.locate(p, m) for p, m in err.found]) from None

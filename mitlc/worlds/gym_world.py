@@ -35,7 +35,7 @@ tabular learner read it as they read a grid:
 Labels are declarative; nothing read from the file runs code but the import of installed
 modules by name (:mod:`mitlc.worlds.env_make`: ``env.import``, ``module:EnvId``, ``wrappers``),
 and only registered ids are made (``gymnasium.make(id, **kwargs)``, the arguments YAML scalars,
-lists and mappings). The labels of a finite world:
+lists and mappings naming no file: :mod:`mitlc.worlds.trust`). The labels of a finite world:
 
 * ``{obs: [5, 7]}`` holds in the listed observations;
 * ``{decoded: {radices: [5, 5, 5, 4], fields: [row, col, passenger, destination], where:
@@ -56,6 +56,7 @@ import math
 import operator
 import re
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -219,12 +220,13 @@ def _check_decoding(path: FieldPath, decoding: Decoding, found: Found) -> None:
 # --- making the env --------------------------------------------------------------------------
 
 
-def make_env(settings: Env) -> Any:
+def make_env(settings: Env, folder: Path | None = None) -> Any:
     """The env ``settings`` names, made (:func:`mitlc.worlds.env_make.make_env`: installed
-    modules imported by name, registered ids only, the listed wrappers applied); a
-    :class:`GymWorldError` at the field at fault if it cannot be."""
+    modules imported by name, none from the current directory or the world file's ``folder``,
+    registered ids only, the listed wrappers applied); a :class:`GymWorldError` at the field at
+    fault if it cannot be."""
     try:
-        return env_make.make_env(settings)
+        return env_make.make_env(settings, folder)
     except env_make.EnvMakeError as err:
         raise GymWorldError(err.found) from None
 

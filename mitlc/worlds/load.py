@@ -55,6 +55,7 @@ from mitlc.worlds.schema import (
     WorldFile,
     show,
 )
+from mitlc.worlds.trust import OutsideError, inside_folder
 
 
 @dataclass(frozen=True, slots=True)
@@ -433,7 +434,7 @@ def _load_env_world(path: Path, source: _Source, task: str | None) -> World:
     _require_labelled(path, source, (spec, spec_source), missing, world.labels, "holds in no state")
     costs, propositions = _world_costs(world, path, source, propositions, None)
     try:
-        env = gym_world.make_env(world.env)
+        env = gym_world.make_env(world.env, path.parent)
         try:
             built = gym_world.build_world(
                 world,
@@ -575,10 +576,15 @@ def _load_spec(
     if task is not None:
         return task, "<spec>", atoms(parse(task, "<spec>"))
     if isinstance(world.spec, str):
-        spec_path = path.parent / world.spec
         where: FieldPath = ("spec",)
         try:
-            text = read_spec(spec_path)
+            inside = inside_folder(path.parent, world.spec)  # never read where it is not
+        except OutsideError as err:
+            message = f"the spec file {show(world.spec)} is refused: {err}"
+            raise WorldError(filename, [source.locate(where, message)]) from None
+        spec_path = path.parent / world.spec  # as written, for the messages
+        try:
+            text = read_spec(inside)
             formula = parse(text, str(spec_path))
         except (OSError, ValueError) as err:  # ValueError: a NUL in the path
             reason = "not found" if isinstance(err, FileNotFoundError) else _reason(err)
