@@ -180,9 +180,11 @@ def _missing(value: Any, step: Step, attributes: bool, name: str, done: str) -> 
         return f"{where} is a {type(value).__name__}, not a mapping with key {step!r}"
     code = attribute(value, step)
     if isinstance(code, Code):
-        return (f"{where}.{step} is a {code.kind} of {type(value).__name__}: reading it runs "
-                "code; attr: reads data (an attribute the object holds, a dataclass field, an "
-                "array, a list or a mapping), so name the attribute that holds the value")
+        return (
+            f"{where}.{step} is a {code.kind} of {type(value).__name__}: reading it runs "
+            "code; attr: reads data (an attribute the object holds, a dataclass field, an "
+            "array, a list or a mapping), so name the attribute that holds the value"
+        )
     names = sorted(n for n in dir(value) if PUBLIC.match(n))
     return (f"{where} (a {type(value).__name__}) has no attribute {step!r}{_hint(step, names)} "
             f"(attributes: {_listed(names)})")  # fmt: skip

@@ -146,20 +146,24 @@ def make_env(settings: Env, folder: Path | None = None) -> Any:
     with quiet():
         import gymnasium
     module, env_id = split_id(settings.id, ENV_ID)
+    named = [*settings.imports, *([module] if module else [])]
+    refused: list[tuple[FieldPath, str]] = []
+    for i, entry in enumerate(settings.wrappers):  # before anything is imported
+        wrapper: FieldPath = ("env", "wrappers", i)
+        _wrapper_class(entry, (*wrapper, "class") if entry.kwargs else wrapper, named)
+        refused += trust.path_arguments(entry.kwargs, (*wrapper, "kwargs"))
+    if refused:
+        raise EnvMakeError(refused)
     for i, name in enumerate(settings.imports):
         import_named(name, ("env", "import", i), folder)
     if module:
         import_named(module, ENV_ID, folder)
     _check_id(env_id, gymnasium.registry, ENV_ID)
     where: FieldPath = ("env", "kwargs")
-    kwargs = nested_ids(gymnasium.registry[env_id], settings.kwargs, where, gymnasium.registry,
-                        folder)
-    refused = trust.path_arguments(kwargs, where, gymnasium.registry)
-    named = [*settings.imports, *([module] if module else [])]
-    for i, entry in enumerate(settings.wrappers):
-        wrapper: FieldPath = ("env", "wrappers", i)
-        _wrapper_class(entry, (*wrapper, "class") if entry.kwargs else wrapper, named)
-        refused += trust.path_arguments(entry.kwargs, (*wrapper, "kwargs"), gymnasium.registry)
+    kwargs = nested_ids(
+        gymnasium.registry[env_id], settings.kwargs, where, gymnasium.registry, folder
+    )
+    refused = trust.path_arguments(kwargs, where, gymnasium.registry)  # ids are not paths
     if refused:
         raise EnvMakeError(refused)
     try:

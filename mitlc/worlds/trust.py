@@ -155,8 +155,9 @@ def _paths(value: Any, where: FieldPath, ids: Any, found: list[tuple[FieldPath, 
         for key, item in value.items():
             at: FieldPath = (*where, str(key))
             if isinstance(key, str) and path_key(key) and item is not None and item is not False:
-                found.append((at, f"an argument that names a file ({key}): a world file reads "
-                                  f"and writes no file outside its folder; {TRUST_HINT}"))
+                message = (f"an argument that names a file ({key}): a world file reads and "
+                           f"writes no file outside its folder; {TRUST_HINT}")  # fmt: skip
+                found.append((at, message))
             else:
                 _paths(item, at, ids, found)
     elif isinstance(value, list):
@@ -164,8 +165,9 @@ def _paths(value: Any, where: FieldPath, ids: Any, found: list[tuple[FieldPath, 
             _paths(item, (*where, i), ids, found)
     elif isinstance(value, str) and path_text(value, ids):
         shown = value if len(value) <= 40 else value[:37] + "..."
-        found.append((where, f"{shown!r} reads as a file's path or a module:name: a world "
-                             f"file names no file outside its folder and no code; {TRUST_HINT}"))
+        message = (f"{shown!r} reads as a file's path or a module:name: a world file names no "
+                   f"file outside its folder and no code; {TRUST_HINT}")  # fmt: skip
+        found.append((where, message))
 
 
 # -- wrappers ------------------------------------------------------------------------------------
