@@ -34,7 +34,12 @@ from mitlc.cli_learn import register as register_learning
 from mitlc.cli_memory import exit_now
 from mitlc.cli_sweep import register as register_sweeps
 from mitlc.errors import MitlcError
-from mitlc.limits import DEFAULT_MAX_STATES, DEFAULT_TIME_LIMIT, Deadline
+from mitlc.limits import (
+    DEFAULT_MAX_DRAWN_STATES,
+    DEFAULT_MAX_STATES,
+    DEFAULT_TIME_LIMIT,
+    Deadline,
+)
 from mitlc.syntax import ast_to_data, atoms, parse_batch_file, to_text
 from mitlc.syntax.tree import tree_text
 
@@ -163,15 +168,25 @@ def render_command(
     output: Annotated[
         Path, typer.Option("--output", "-o", help="FILE.png, FILE.svg or FILE.dot.")
     ] = Path("automaton.png"),
-    max_states: MaxStatesOpt = DEFAULT_MAX_STATES,
+    max_states: Annotated[
+        int,
+        typer.Option(
+            "--max-states",
+            min=1,
+            help="Refuse to draw an automaton of more states than this (a .dot file is "
+            "written at any size).",
+        ),
+    ] = DEFAULT_MAX_DRAWN_STATES,
     time_limit: TimeLimitOpt = DEFAULT_TIME_LIMIT,
 ) -> None:
     """Draw the timed LDGBA of a formula or of a compiled artifact."""
     from mitlc.automata import compile_formula
     from mitlc.automata.artifact import from_data
-    from mitlc.automata.dot import render, to_dot
+    from mitlc.automata.dot import draw, output_format
     from mitlc.inputs import MAX_ARTIFACT_BYTES, read_capped
 
+    output_format(output)  # an unknown format is refused before any work
+    deadline = command_deadline(time_limit, "render")  # Graphviz's layout included
     if source is not None and source.endswith(".json"):
         text = read_capped(source, MAX_ARTIFACT_BYTES, "an automaton artifact")  # or OSError
         try:
@@ -189,10 +204,10 @@ def render_command(
     else:
         timed = compile_formula(
             load_formula(source, expr),
-            max_states=max_states,
-            deadline=command_deadline(time_limit, "render"),
+            max_states=max(DEFAULT_MAX_STATES, max_states),  # the translation's own limit
+            deadline=deadline,
         ).timed
-    render(to_dot(timed), output)
+    draw(timed, output, max_states=max_states, deadline=deadline)
     typer.echo(f"wrote {output}", err=True)
 
 

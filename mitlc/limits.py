@@ -13,11 +13,15 @@ import os
 import resource
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, suppress
 from types import EllipsisType
+from typing import TYPE_CHECKING
 
 from mitlc.errors import MitlcError
+
+if TYPE_CHECKING:
+    import subprocess
 
 DEFAULT_TIME_LIMIT = 60.0
 """Seconds a compile, check or POMDP bound may run before it stops (``--time-limit``).
@@ -29,6 +33,17 @@ G[0,1000] a``, about a million states of hundreds of atoms each) holds 3 GB afte
 DEFAULT_MAX_STATES = 1_000_000
 """The most digital states a translation builds before it stops (``--max-states``; the
 ``max_states`` of :func:`mitlc.automata.compile_formula`)."""
+
+DEFAULT_MAX_DRAWN_STATES = 100
+"""The most states ``mitlc render`` draws through Graphviz (its ``--max-states``), checked before
+Graphviz starts.
+
+The largest automaton of ``bench/formulas.txt`` and the paper's specs has 87 states (case 2,
+``G F[5,10] a & G F[15,20] b``: laid out in 0.4 s), while a drawing of more than a hundred boxes
+cannot be read. Graphviz's layout time depends on the edges more than on the states: nested
+windows (``F[0,5] F[0,5] ... a``, 5 edges a state) took 5 s at 41 states, 56 s at 49 and more
+than 100 s at 61 (measured on this 2-core machine), so the time limit stops what this cap lets
+through (:func:`run_within`)."""
 
 DEFAULT_MAX_PRODUCT_STATES = 8_000_000
 """The largest product (its bound ``S * Q`` on the states) built by default
@@ -298,6 +313,110 @@ def collector_paused() -> Iterator[None]:
 
 _frozen: list[bool] = [False]
 """Whether :func:`collector_paused` froze the collector's objects on leaving with an error."""
+
+
+# --- subprocesses: the same time and memory limits -------------------------------------------
+
+_KILLED_FOR_MEMORY = (b"out of memory", b"cannot allocate", b"memory exhausted", b"alloc",
+                      b"resource temporarily unavailable")  # fmt: skip
+"""What a program's error output says (lower case) when an allocation failed under its cap."""
+
+
+def run_within(argv: Sequence[str], data: bytes, deadline: Deadline, name: str) -> bytes:
+    """Run ``argv`` with ``data`` on its standard input, within what is left of ``deadline``;
+    its standard output.
+
+    The program runs in a process group of its own, with the time left to ``deadline`` and
+    (Linux) an address-space limit (``RLIMIT_AS``) of the memory left to it: ``deadline``'s
+    memory limit less what this process holds. At the time limit the whole group is killed and
+    :meth:`Deadline.error` raised; a program that fails within its memory cap (killed by a
+    signal, or saying it is out of memory) raises :class:`LimitError` naming the memory limit.
+    ``name`` names the program in messages. A program that cannot be started raises
+    :class:`OSError`; one that fails otherwise :class:`SubprocessError` with its error output.
+    """
+    import subprocess
+
+    deadline.check_now()
+    cap = _memory_left(deadline)
+    process = subprocess.Popen(
+        list(argv),
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,  # a process group of its own, to kill whatever it started
+    )
+    try:
+        if cap is not None:  # before its input is written, so before any of its work
+            with suppress(ProcessLookupError):  # it has ended already
+                resource.prlimit(process.pid, resource.RLIMIT_AS, (cap, cap))
+        out, err = process.communicate(data, timeout=deadline.remaining())
+    except subprocess.TimeoutExpired:
+        _kill_group(process)
+        raise deadline.error() from None
+    finally:
+        if process.poll() is None:  # an interrupt, an error: leave nothing running
+            _kill_group(process)
+    if process.returncode != 0:
+        if cap is not None and _out_of_memory(process.returncode, err):
+            raise LimitError(
+                f"{deadline.what} stopped at the memory limit of {deadline.memory:g} GB"
+                f"{deadline._where()}: {name} {_ended(process.returncode)} within the "
+                f"{gigabytes(cap)} of memory left to it; raise it with {deadline.memory_how}"
+            )
+        raise SubprocessError(name, process.returncode, err)
+    return out
+
+
+class SubprocessError(MitlcError):
+    """A program run by :func:`run_within` failed (not at a limit); the message quotes the
+    first line of its error output."""
+
+    def __init__(self, name: str, code: int, stderr: bytes) -> None:
+        lines = stderr.decode("utf-8", "replace").strip().splitlines()
+        said = f": {lines[0].strip()}" if lines else ""
+        super().__init__(f"{name} {_ended(code)}{said}")
+        self.code = code
+        self.stderr = stderr
+
+
+def _memory_left(deadline: Deadline) -> int | None:
+    """Bytes a program may map under ``deadline``'s memory limit (``None``: no cap, or no
+    ``prlimit`` on this system); :class:`LimitError` where none are left."""
+    if deadline.memory is None or not hasattr(resource, "prlimit"):
+        return None
+    resident = resident_bytes()
+    left = int(deadline.memory * GB) - resident
+    if left <= 0:
+        raise deadline.memory_error(resident)
+    return left
+
+
+def _kill_group(process: subprocess.Popen[bytes]) -> None:
+    """Kill ``process`` and its process group, and wait for it."""
+    import signal
+
+    with suppress(ProcessLookupError, PermissionError):  # ended, its group with it
+        os.killpg(process.pid, signal.SIGKILL)
+    process.communicate()
+
+
+def _out_of_memory(code: int, stderr: bytes) -> bool:
+    """Whether a program that ended with ``code`` under a memory cap failed for memory: killed
+    by a signal (a failed allocation often ends in ``SIGSEGV`` or ``SIGABRT``) or saying so."""
+    said = stderr.lower()
+    return code < 0 or any(words in said for words in _KILLED_FOR_MEMORY)
+
+
+def _ended(code: int) -> str:
+    """``exited with status 1`` or ``was killed by SIGSEGV``."""
+    if code >= 0:
+        return f"exited with status {code}"
+    import signal
+
+    try:
+        return f"was killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"was killed by signal {-code}"
 
 
 # --- input sizes: specs, world files, traces (checked before or while they are read) --------

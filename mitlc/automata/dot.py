@@ -8,17 +8,30 @@ drawn apart, dashed.
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from mitlc.automata.tldgba import Edge, Tldgba
 from mitlc.errors import MitlcError
 from mitlc.files import write_atomically
+from mitlc.limits import DEFAULT_TIME_LIMIT, Deadline, LimitError, SubprocessError, run_within
 
 _SYMBOLS = (("&", "∧"), ("|", "∨"), ("!", "¬"))
 
 
 class RenderError(MitlcError):
     """Graphviz is missing or failed, or the output format is unknown."""
+
+
+class DrawingSizeError(RenderError, LimitError):
+    """An automaton has more states than a drawing may (``--max-states`` of ``mitlc render``)."""
+
+
+LAYOUT = "Graphviz's layout"
+"""The stage a deadline's message names while Graphviz runs."""
+
+_LAID_OUT = ("png", "svg", "pdf")
+"""The formats Graphviz lays out (``.dot`` is written as it is)."""
 
 
 def _quote(text: str) -> str:
@@ -104,27 +117,73 @@ def to_dot(automaton: Tldgba) -> str:
     return "\n".join(lines) + "\n"
 
 
-def render(dot: str, path: Path) -> None:
-    """Write ``dot`` to ``path`` as PNG, SVG or DOT (by its suffix), atomically."""
+def draw(
+    automaton: Tldgba,
+    path: Path,
+    *,
+    max_states: int | None = None,
+    deadline: Deadline | None = None,
+) -> None:
+    """Write the drawing of ``automaton`` to ``path`` (:func:`render`), refusing one of more
+    than ``max_states`` states (``None``: any) with :class:`DrawingSizeError` before Graphviz
+    starts; a ``.dot`` file, which Graphviz does not lay out, is written at any size."""
+    fmt = output_format(path)
+    states = len(automaton.locations)
+    if fmt in _LAID_OUT and max_states is not None and states > max_states:
+        raise DrawingSizeError(
+            f"the automaton has {states} states, more than --max-states {max_states} that a "
+            f"drawing may have (a larger one cannot be read, and Graphviz may take minutes "
+            f"over it); raise the limit with a larger --max-states, or write it as text "
+            f"(-o FILE.dot, or mitlc compile -f dot)"
+        )
+    render(to_dot(automaton), path, deadline=deadline)
+
+
+def output_format(path: Path) -> str:
+    """``png``, ``svg``, ``pdf`` or ``dot``, by the suffix of ``path``; :class:`RenderError`
+    for any other."""
     suffix = path.suffix.lower().lstrip(".")
-    if suffix == "dot":
-        data = dot.encode("utf-8")
-    elif suffix in ("png", "svg", "pdf"):
-        data = _pipe(dot, suffix)
-    else:
+    if suffix != "dot" and suffix not in _LAID_OUT:
         raise RenderError(f"{path}: unknown output format '.{suffix}' (use .png, .svg or .dot)")
+    return suffix
+
+
+def render(
+    dot: str,
+    path: Path,
+    *,
+    time_limit: float | None = DEFAULT_TIME_LIMIT,
+    deadline: Deadline | None = None,
+) -> None:
+    """Write ``dot`` to ``path`` as PNG, SVG, PDF or DOT (by its suffix), atomically.
+
+    Graphviz runs within ``deadline`` when one is given (the time left to it and its memory
+    limit, see :func:`mitlc.limits.run_within`), else within ``time_limit`` seconds (``None``:
+    none) and the command's memory limit (:func:`mitlc.limits.memory_limit`)."""
+    fmt = output_format(path)
+    if fmt == "dot":
+        data = dot.encode("utf-8")
+    else:
+        clock = Deadline.of(deadline, time_limit, "render")
+        data = graphviz(dot, fmt, clock)
     write_atomically(path, data)
 
 
-def _pipe(dot: str, fmt: str) -> bytes:
-    import graphviz
-
-    try:
-        data: bytes = graphviz.Source(dot).pipe(format=fmt)
-    except graphviz.ExecutableNotFound:
+def graphviz(dot: str, fmt: str, deadline: Deadline) -> bytes:
+    """``dot`` laid out by Graphviz's ``dot`` program in format ``fmt`` (``png``, ``svg``,
+    ``pdf``): the one place mitlc starts Graphviz, within ``deadline``'s time and memory
+    (:class:`~mitlc.limits.LimitError` at either; :class:`RenderError` when Graphviz is
+    missing or fails)."""
+    program = shutil.which("dot")
+    if program is None:
         raise RenderError(
             "Graphviz's `dot` was not found: install Graphviz (e.g. apt-get install graphviz)"
-        ) from None
-    except graphviz.CalledProcessError as err:
-        raise RenderError(f"Graphviz failed: {err}") from None
-    return data
+        )
+    try:
+        return run_within(
+            [program, f"-T{fmt}"], dot.encode("utf-8"), deadline.at(LAYOUT), "Graphviz"
+        )
+    except SubprocessError as err:
+        raise RenderError(str(err)) from None
+    except OSError as err:
+        raise RenderError(f"Graphviz's `dot` could not be started: {err}") from None
