@@ -110,6 +110,8 @@ def test_a_spec_file_below_the_folder_is_read(tmp_path: Path) -> None:
          "env.kwargs.xml_file: an argument that names a file (xml_file)"),
         ("{id: CartPole-v1, kwargs: {config: {where: [OUT]}}}",
          "env.kwargs.config.where[0]: "),
+        ("{id: CartPole-v1, kwargs: {config: {'OUT': 1}}}",
+         "an argument that names a file (/"),
         ("{id: CartPole-v1, kwargs: {sutton_barto_reward: 'evilmod:Thing'}}",
          "env.kwargs.sutton_barto_reward: 'evilmod:Thing' reads as a file's path or a "
          "module:name"),

@@ -148,7 +148,7 @@ def attribute(value: Any, name: str) -> Any:
     if isinstance(found, types.MemberDescriptorType):  # a __slots__ field: the C getter
         try:
             return found.__get__(value, type(value))
-        except AttributeError:  # a slot not set
+        except Exception:  # a slot not set, or read on the class
             return MISSING
     if isinstance(found, property | types.GetSetDescriptorType):
         return Code("property")

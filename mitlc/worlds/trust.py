@@ -154,7 +154,8 @@ def _paths(value: Any, where: FieldPath, ids: Any, found: list[tuple[FieldPath, 
     if isinstance(value, Mapping):
         for key, item in value.items():
             at: FieldPath = (*where, str(key))
-            if isinstance(key, str) and path_key(key) and item is not None and item is not False:
+            named = item is not None and item is not False
+            if isinstance(key, str) and ((path_key(key) and named) or path_text(key, ids)):
                 message = (f"an argument that names a file ({key}): a world file reads and "
                            f"writes no file outside its folder; {TRUST_HINT}")  # fmt: skip
                 found.append((at, message))
