@@ -372,3 +372,34 @@ def test_hostile_world_files_write_nothing_outside_the_run(
 def test_the_commands_that_load_worlds_take_trust_world(command: str) -> None:
     result = CliRunner().invoke(app, [command, "--help"], terminal_width=200)
     assert "--trust-world" in result.output
+
+
+def trusting_world(tmp_path: Path) -> Path:
+    """A world whose wrapper takes an argument that reads as a path (harmless here)."""
+    wrapper = "{class: 'mitlc_test_envs:Recorder', kwargs: {tag: 'a/b'}}"
+    return env_world(tmp_path, f"{{import: [mitlc_test_envs], id: MitlcTest/Probe-v0, "
+                     f"wrappers: [{wrapper}]}}", "{a: {attr: speed, above: 0.5}}")  # fmt: skip
+
+
+def test_trust_world_on_the_command_line_is_for_that_command(tmp_path: Path, package: Any) -> None:
+    path = str(trusting_world(tmp_path))
+    runner = CliRunner()
+    for trust in ([], ["--trust-world"], []):
+        result = runner.invoke(app, ["check", path, *trust])
+        assert result.exit_code == 1 and len(result.output.strip().splitlines()) == 1
+        refused = "'a/b' reads as a file's path" in result.output
+        assert refused == (not trust), result.output  # trusted: made, then not finite
+
+
+@pytest.mark.slow
+def test_a_trusted_world_trains(
+    tmp_path: Path, package: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    trusting_world(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    train = ["train", "world.yaml", "--episodes", "1", "--no-eval", "-q"]
+    refused = runner.invoke(app, [*train, "--out", "run1"])
+    assert refused.exit_code == 1 and "'a/b' reads as a file's path" in refused.output
+    trusted = runner.invoke(app, [*train, "--out", "run2", "--trust-world"])
+    assert trusted.exit_code == 0, trusted.output
