@@ -7,6 +7,7 @@ make a test slow or uncertain."""
 
 from __future__ import annotations
 
+import math
 import os
 import resource
 import time
@@ -19,7 +20,7 @@ from mitlc.automata import compile_formula
 from mitlc.automata.artifact import to_json
 from mitlc.automata.dot import render
 from mitlc.cli import app
-from mitlc.limits import DEFAULT_MAX_DRAWN_STATES, GB, LimitError
+from mitlc.limits import DEFAULT_MAX_DRAWN_STATES, GB, LimitError, resident_bytes
 from mitlc.syntax import parse
 from tests.conftest import ROOT
 
@@ -92,6 +93,12 @@ def test_an_artifact_is_refused_too_and_a_dot_file_written_at_any_size(
     assert started.exists()  # the fake Graphviz drew it (it copies its input)
 
 
+def roomy_limit() -> int:
+    """A memory limit in whole GB a gigabyte above what this process holds (the test run may
+    hold a lot by now)."""
+    return math.ceil(resident_bytes() / GB) + 1
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -140,11 +147,12 @@ def test_graphviz_runs_under_the_memory_left_to_the_command(
 ) -> None:
     fake_dot(tmp_path, monkeypatch, "cat > /dev/null; ulimit -v")  # reads, then says its cap
     out = tmp_path / "a.svg"
-    result = runner.invoke(app, ["render", CASE1, "-o", str(out), "--memory-limit", "2"])
+    limit = roomy_limit()
+    result = runner.invoke(app, ["render", CASE1, "-o", str(out), "--memory-limit", str(limit)])
     assert result.exit_code == 0, result.output
     kib = int(out.read_text(encoding="utf-8"))
-    held = 2 * GB // 1024 - kib  # what this process held, in KiB
-    assert 0 < held < 1.5 * GB // 1024
+    left = (limit * GB - resident_bytes()) // 1024  # the limit less what this process holds
+    assert abs(kib - left) < 256 * 1024
     none = runner.invoke(app, ["render", CASE1, "-o", str(out), "--memory-limit", "0"])
     assert none.exit_code == 0, none.output
     assert out.read_text(encoding="utf-8").strip() == "unlimited"
@@ -157,13 +165,14 @@ def test_graphviz_failing_under_its_cap_stops_at_the_memory_limit(
     # What a failed allocation looked like in the real `dot` under `ulimit -v`: SIGSEGV, or
     # GLib's "Error creating thread: Resource temporarily unavailable" and SIGTRAP.
     fake_dot(tmp_path, monkeypatch, "cat > /dev/null; kill -SEGV $$")
+    limit = roomy_limit()
     result = runner.invoke(
-        app, ["render", CASE1, "-o", str(tmp_path / "a.svg"), "--memory-limit", "2"]
+        app, ["render", CASE1, "-o", str(tmp_path / "a.svg"), "--memory-limit", str(limit)]
     )
     assert result.exit_code == 1
     line = one_line(result.output)
     assert line.startswith(
-        "mitlc render stopped at the memory limit of 2 GB (during Graphviz's layout): "
+        f"mitlc render stopped at the memory limit of {limit} GB (during Graphviz's layout): "
         "Graphviz was killed by SIGSEGV within the "
     )
     assert line.endswith("raise it with --memory-limit GB (0 for none)")
