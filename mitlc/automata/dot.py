@@ -9,6 +9,7 @@ drawn apart, dashed.
 from __future__ import annotations
 
 import shutil
+import sys
 from pathlib import Path
 
 from mitlc.automata.tldgba import Edge, Tldgba
@@ -29,6 +30,23 @@ class DrawingSizeError(RenderError, LimitError):
 
 LAYOUT = "Graphviz's layout"
 """The stage a deadline's message names while Graphviz runs."""
+
+_LAYOUT_CHILD = """
+import os, sys
+import graphviz
+try:
+    sys.stdout.buffer.write(graphviz.pipe("dot", sys.argv[1], sys.stdin.buffer.read(), quiet=True))
+except graphviz.CalledProcessError as err:
+    sys.stderr.buffer.write(err.stderr or str(err).encode())
+    sys.stderr.flush()
+    if err.returncode < 0:
+        os.kill(os.getpid(), -err.returncode)
+    sys.exit(err.returncode or 1)
+"""
+"""The layout's process: the ``graphviz`` package's ``pipe`` of Graphviz's ``dot``, in a Python
+of its own so that :func:`mitlc.limits.run_within` holds it and the ``dot`` it starts within
+the command's limits (one process group, one memory cap); a ``dot`` killed by a signal kills
+it with the same signal."""
 
 _LAID_OUT = ("png", "svg", "pdf")
 """The formats Graphviz lays out (``.dot`` is written as it is)."""
@@ -174,15 +192,13 @@ def graphviz(dot: str, fmt: str, deadline: Deadline) -> bytes:
     ``pdf``): the one place mitlc starts Graphviz, within ``deadline``'s time and memory
     (:class:`~mitlc.limits.LimitError` at either; :class:`RenderError` when Graphviz is
     missing or fails)."""
-    program = shutil.which("dot")
-    if program is None:
+    if shutil.which("dot") is None:
         raise RenderError(
             "Graphviz's `dot` was not found: install Graphviz (e.g. apt-get install graphviz)"
         )
+    argv = [sys.executable, "-I", "-c", _LAYOUT_CHILD, fmt]
     try:
-        return run_within(
-            [program, f"-T{fmt}"], dot.encode("utf-8"), deadline.at(LAYOUT), "Graphviz"
-        )
+        return run_within(argv, dot.encode("utf-8"), deadline.at(LAYOUT), "Graphviz")
     except SubprocessError as err:
         raise RenderError(str(err)) from None
     except OSError as err:

@@ -84,7 +84,7 @@ def plot_run(
     timed = compile_formula(
         parse(setting.world.spec, setting.world.spec_source), deadline=deadline
     ).timed
-    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton)
+    render(to_dot(timed).replace("{\n", "{\n  dpi=120;\n", 1), automaton, deadline=deadline)
     return [*written, automaton]
 
 
