@@ -58,7 +58,9 @@ def fully_observed(path: Path, directory: Path) -> Path:
     ``directory``."""
     text = path.read_text(encoding="utf-8")
     text = re.sub(r"(?m)^observation: .*$", "observation: null", text)
-    text = re.sub(r"(?m)^spec: (\S+)$", lambda m: f"spec: {path.parent / m.group(1)}", text)
+    spec = re.search(r"(?m)^spec: (\S+)$", text)
+    if spec:  # beside the copy: a world file reads no file outside its folder
+        (directory / spec[1]).write_bytes((path.parent / spec[1]).read_bytes())
     copy = directory / f"mdp-{path.name}"
     copy.write_text(text, encoding="utf-8")
     return copy
