@@ -19,10 +19,13 @@ the frontier after its marks)
 
     q_V(c) = sum_y P(c, y) V[r-1][mask', y]      q_C(c) = cost(c) + sum_y P(c, y) C[r-1][mask', y]
 
-and ``C[r][mask, x]`` is the least ``q_C(c)`` among the choices with ``q_V(c) >= V[r][mask, x]``
-(within :data:`TOLERANCE`, relative); an epsilon jump to ``t`` takes no step and costs nothing,
-so it offers ``C[r][mask, t]`` when ``V[r][mask, t]`` is optimal too (in ``pmax_horizon``'s
-order of jumps). Nothing is paid once the task is decided: the absorbing states cost 0. The
+and ``C[r][mask, x]`` is the least cost among the choices of ``x`` whose success value is
+optimal, world actions and epsilon jumps alike: a world choice ``c`` with ``q_V(c) >=
+V[r][mask, x]`` offers ``q_C(c)``, and a jump to ``t`` (no step, no cost) with ``V[r][mask, t] >=
+V[r][mask, x]`` offers ``C[r][mask, t]`` (both within :data:`TOLERANCE`, relative; the jumps in
+``pmax_horizon``'s order). A choice that is not optimal is never taken, however cheap: where
+the optimum needs a jump (no world choice reaches ``V[r][mask, x]``), the jump is taken
+whatever it costs. Nothing is paid once the task is decided: the absorbing states cost 0. The
 value reported is ``C[H][0]`` averaged over the start distribution.
 """
 
@@ -104,32 +107,54 @@ class _Step:
         self.is_jump = product.action < 0
         self.jumps = jumps_in_order(product)
         self.index = np.arange(product.num_choices)
+        sources = np.array([s for s, _, _ in self.jumps], dtype=np.int64)
+        targets = np.array([t for _, t, _ in self.jumps], dtype=np.int64)
+        self.jump_sources, self.jump_targets = sources, targets
+        # Some jump leads to a state with jumps of its own (none in a limit-deterministic
+        # automaton's product, whose jumps all leave the initial component): then the jumps
+        # are relaxed until nothing changes, not once.
+        self.chained = bool(np.isin(targets, sources).any())
 
     def back(
         self, before: FloatArray, best: FloatArray, later: FloatArray
     ) -> tuple[FloatArray, IntArray]:
         """``C[r]`` and the choices taken, from ``V[r-1]`` (``before``), ``V[r]`` (``best``)
-        and ``C[r-1]`` (``later``)."""
+        and ``C[r-1]`` (``later``).
+
+        Only the choices whose success value is optimal are candidates, world actions and
+        jumps alike: a world action by its ``q_V``, a jump by its target's ``V[r]``. Where
+        no world action is optimal (the optimum needs a jump) the state's world cost is
+        infinite and an optimal jump replaces it whatever it costs."""
         owner, ptr, world = self.owner, self.ptr, ~self.is_jump
         q_v = np.stack([m @ before.ravel() for m in self.matrices])
         q_c = np.stack([self.costs + m @ later.ravel() for m in self.matrices])
-        ok = world & (q_v >= best[:, owner] * (1.0 - TOLERANCE))
-        stuck = ~np.logical_or.reduceat(ok, ptr, axis=1)
-        if stuck.any():  # rounding left no choice at the optimum: keep the best ones there
-            top = np.maximum.reduceat(np.where(world, q_v, -1.0), ptr, axis=1)
-            ok |= stuck[:, owner] & world & (q_v >= top[:, owner] * (1.0 - TOLERANCE))
-        masked = np.where(ok, q_c, np.inf)
+        goal = self._goal(q_v, best)
+        masked = np.where(world & (q_v >= goal[:, owner]), q_c, np.inf)
         cost = np.minimum.reduceat(masked, ptr, axis=1)
         first = np.where(masked <= cost[:, owner], self.index, self.product.num_choices)
         choice = np.minimum.reduceat(first, ptr, axis=1)
-        for source, target, c in self.jumps:  # in pmax_horizon's order (_settle)
-            better = (best[:, target] >= best[:, source] * (1.0 - TOLERANCE)) & (
-                cost[:, target] < cost[:, source]
-            )
-            cost[:, source] = np.where(better, cost[:, target], cost[:, source])
-            choice[:, source] = np.where(better, c, choice[:, source])
+        changed = True
+        while changed:  # one pass, in pmax_horizon's order (_settle), unless jumps chain
+            changed = False
+            for source, target, c in self.jumps:
+                better = (best[:, target] >= goal[:, source]) & (cost[:, target] < cost[:, source])
+                if better.any():
+                    cost[:, source] = np.where(better, cost[:, target], cost[:, source])
+                    choice[:, source] = np.where(better, c, choice[:, source])
+                    changed = self.chained
         cost[:, SATISFIED] = cost[:, VIOLATED] = 0.0
         return cost, choice
+
+    def _goal(self, q_v: FloatArray, best: FloatArray) -> FloatArray:
+        """Per mask and state, the success value a choice must reach to be a candidate:
+        ``V[r]`` less :data:`TOLERANCE` (relative), or, where rounding left every choice a
+        hair below it, the best the choices reach (their ``q_V``, a jump's target's ``V[r]``)
+        less the same tolerance, so that some choice always qualifies."""
+        top = np.maximum.reduceat(np.where(self.is_jump, -1.0, q_v), self.ptr, axis=1)
+        if len(self.jumps):
+            np.maximum.at(top.T, self.jump_sources, best[:, self.jump_targets].T)
+        goal: FloatArray = np.minimum(best, top) * (1.0 - TOLERANCE)
+        return goal
 
 
 def policy_data(
