@@ -402,12 +402,12 @@ JUMP_NEEDED: dict[str, Any] = {
     "motion": {"intended": 1.0, "sideways": 0.0},
     "spec": {"formula": "F G a & G F b"},
     "horizon": 2,
-    "costs": {"step": 1, "transitions": [{"from": "G a & G F F b", "when": "b", "cost": 9}]},
+    "costs": {"step": 1, "transitions": [{"from": "G a & G F b", "when": "b", "cost": 9}]},
 }
 """Issue 42's reproduction in the finite reading: ``a`` on both cells, ``b`` at (0, 1), the
 start; the one action moves left for sure. Without the jump the episode ends having read
 ``b`` then ``a`` (the recurrence's last ``b`` is not the last letter: a failure); after the
-jump to ``G a & G F b`` (written ``G a & G F F b`` by ``mitlc compile``) the first step
+jump to ``G a & G F b`` the first step
 completes a round and the second keeps ``G a``: success 1. That first step pays 1 + 9, the
 second 1: (1.0, 11.0). The code before the fix reported (1.0, 2.0) with a policy of success 0
 (no jump: the jump was taken only when cheaper than the best world choice)."""

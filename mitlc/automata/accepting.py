@@ -148,8 +148,21 @@ class Guess:
     def text(self, store: TermStore) -> str:
         """The obligation of this state: ``S & G F seed`` for each token."""
         parts = [form_text(store, self.safety)] if self.safety != store.true else []
-        parts += [f"G F ({form_text(store, seed)})" for _, seed, _ in self.tokens]
+        parts += [_recurrence_text(store, seed) for _, seed, _ in self.tokens]
         return " & ".join(f"({p})" if " " in p and len(parts) > 1 else p for p in parts) or "true"
+
+
+def _recurrence_text(store: TermStore, seed: int) -> str:
+    """``G F seed``, written ``G F b`` (not ``G F F b``) for a seed ``F b``, as the formula was."""
+    cubes = store.forms[seed]
+    if len(cubes) == 1:
+        (cube,) = cubes
+        if len(cube) == 1:
+            (atom,) = cube
+            kind, lo, hi, _, _ = store.atoms[atom]
+            if kind == EVENTUALLY and lo == 0 and hi == INF:
+                return f"G {form_text(store, seed)}"
+    return f"G F ({form_text(store, seed)})"
 
 
 def guesses(
