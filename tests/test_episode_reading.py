@@ -26,6 +26,7 @@ from gymnasium import spaces
 from mitlc.automata import DigitalAutomaton, translate
 from mitlc.check.solve import pmax_horizon
 from mitlc.gym import TaskWrapper
+from mitlc.learn.envs.vec import VecProduct, tables
 from mitlc.learn.evaluation.exact import policy_success
 from mitlc.product import build_product
 from mitlc.product.explicit import Product
@@ -237,6 +238,16 @@ def _world(formula: ast.Formula, horizon: int) -> World:
     )
 
 
+def _simulated(world: World, product: Product, word: tuple[int, ...]) -> bool:
+    """The vectorised simulator's success of the episode that plays ``word``."""
+    sim = VecProduct(tables(product, world), 1, np.random.default_rng(0))
+    for action in (*word[1:], 0):
+        step = sim.step(np.array([action]))
+        if step.terminated[0] or step.truncated[0]:
+            return bool(step.success[0])
+    raise AssertionError("the episode did not end at its horizon")
+
+
 def _trace_policy(product: Product, word: tuple[int, ...]) -> np.ndarray:
     """The time-dependent choices that play ``word`` after its first letter (the start)."""
     horizon = len(word)
@@ -250,13 +261,14 @@ def _trace_policy(product: Product, word: tuple[int, ...]) -> np.ndarray:
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_pmax_horizon_the_exact_evaluation_and_the_wrapper_agree_with_the_reference(
+def test_pmax_horizon_the_exact_evaluation_the_simulator_and_the_wrapper_agree(
     seed: int,
 ) -> None:
     rng = random.Random(seed)
     for formula, automaton in itertools.islice(_formulas(100 + seed, 2), 8):
         for horizon in range(1, 5):
-            product = build_product(_world(formula, horizon), automaton)
+            world = _world(formula, horizon)
+            product = build_product(world, automaton)
             words = [
                 (0, *rest) for rest in itertools.product(range(len(LETTERS)), repeat=horizon - 1)
             ]
@@ -276,6 +288,7 @@ def test_pmax_horizon_the_exact_evaluation_and_the_wrapper_agree_with_the_refere
                     if terminated or truncated:
                         break
                 assert info["success"] == successes[word], (to_text(formula), word)
+                assert _simulated(world, product, word) == successes[word], to_text(formula)
 
 
 # -- mitlc check on the issue's worlds -------------------------------------------------------------
