@@ -154,14 +154,8 @@ class Guess:
 
 def _recurrence_text(store: TermStore, seed: int) -> str:
     """``G F seed``, written ``G F b`` (not ``G F F b``) for a seed ``F b``, as the formula was."""
-    cubes = store.forms[seed]
-    if len(cubes) == 1:
-        (cube,) = cubes
-        if len(cube) == 1:
-            (atom,) = cube
-            kind, lo, hi, _, _ = store.atoms[atom]
-            if kind == EVENTUALLY and lo == 0 and hi == INF:
-                return f"G {form_text(store, seed)}"
+    if store.is_unbounded(seed, EVENTUALLY):
+        return f"G {form_text(store, seed)}"
     return f"G F ({form_text(store, seed)})"
 
 

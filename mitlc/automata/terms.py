@@ -137,12 +137,12 @@ class TermStore:
         if kind in (EVENTUALLY, ALWAYS):
             if lo == hi and lo > 0:
                 return self.delay(lo, operand, strong=kind == EVENTUALLY)
-            if hi == INF and self._is_unbounded(operand, kind):
+            if hi == INF and self.is_unbounded(operand, kind):
                 return operand
             return self.atom_form(self.atom((kind, lo, hi, operand, 0)))
         return self.atom_form(self.atom((kind, lo, hi, left, right)))
 
-    def _is_unbounded(self, form: int, kind: str) -> bool:
+    def is_unbounded(self, form: int, kind: str) -> bool:
         """Whether ``form`` is the single unbounded atom ``F p`` (``G p``) for ``kind`` F (G)."""
         cubes = self.forms[form]
         if len(cubes) != 1:
