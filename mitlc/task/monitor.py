@@ -132,7 +132,6 @@ class TaskMonitor:
         self._next_flat, self._marks_flat = self._next.reshape(-1), self._marks.reshape(-1)
         self._verdict_array = np.zeros(0, dtype=np.int64)
         self._end_array = np.zeros(0, dtype=np.int64)
-        self._success_array = np.zeros(0, dtype=np.bool_)
         self._success_list: list[bool] = []
         self._rule_tables()
 
@@ -358,10 +357,8 @@ class TaskMonitor:
         self._verdict_array = np.asarray(self._verdicts, dtype=np.int64)
         self._end_array = np.asarray(self._ends, dtype=np.int64)
         self._jump_count_array = np.array([len(j) for j in self._jumps], dtype=np.int64)
-        self._success_array = np.asarray(
-            rules.success(self._verdict_array, 0, self._end_array), dtype=np.bool_
-        )
-        self._success_list = self._success_array.tolist()
+        seen_none = rules.success(self._verdict_array, 0, self._end_array)
+        self._success_list = np.asarray(seen_none, dtype=np.bool_).tolist()
 
     def _column_of(self, letters: IntArray) -> IntArray:
         """The tables' column of each letter; 0 (a column never filled) for a letter not seen
