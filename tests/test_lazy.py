@@ -18,7 +18,6 @@ from functools import cache
 import pytest
 
 from mitlc.automata.digital import DigitalAutomaton
-from mitlc.automata.ends import end_value
 from mitlc.automata.keys import Key, Rules
 from mitlc.automata.lazy import LazyAutomaton
 from mitlc.automata.ldba import (
@@ -292,7 +291,7 @@ def test_store_forms_do_not_depend_on_the_order() -> None:
     window = store.temporal(EVENTUALLY, 1, 3, always_a)
     shared = store.temporal(ALWAYS, 0, INF, b)
     ends = store.or_(store.and_(shared, delay), store.and_(shared, window))
-    assert len(store.forms[ends]) == 2 and end_value(store, ends)
+    assert len(store.forms[ends]) == 2 and store.end_value(ends)
 
 
 def test_random_formulas_agree() -> None:

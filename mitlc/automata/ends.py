@@ -35,8 +35,6 @@ acceptance sets, which the episode must have seen (:data:`END_HOLDS`: none).
 
 from __future__ import annotations
 
-from mitlc.automata.terms import TermStore
-
 END_FAILS, END_HOLDS = 0, 1
 """The end codes of a state where a stop fails, and where it succeeds whatever was seen."""
 
@@ -45,8 +43,3 @@ def holds_after(sets: int) -> int:
     """The end code of a state where a stop succeeds once every acceptance set of the mask
     ``sets`` has been seen (:data:`END_HOLDS` for none)."""
     return 1 + sets
-
-
-def end_value(store: TermStore, form: int) -> bool:
-    """Whether the obligation ``form`` holds on the empty suffix (see the module docstring)."""
-    return store.end_value(form)

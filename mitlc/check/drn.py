@@ -24,8 +24,8 @@ the average of Storm's values at those states weighted by them.
 
 from __future__ import annotations
 
+from mitlc.automata.ends import END_HOLDS
 from mitlc.product.explicit import SATISFIED, VIOLATED, Product, product_ends
-from mitlc.task import rules
 from mitlc.worlds.model import FloatArray
 
 
@@ -107,7 +107,7 @@ def to_drn(product: Product, costs: FloatArray | None = None) -> str:
         labels = ["init"] if x in first else []
         labels += [f"acc{k}" for k in range(product.num_sets) if marks >> k & 1]
         labels += ["satisfied"] if x == SATISFIED else []
-        labels += ["end"] if ends[x] == rules.END_HOLDS else []
+        labels += ["end"] if ends[x] == END_HOLDS else []
         labels += ["violated"] if x == VIOLATED else []
         head = f"state {number[x]}"
         lines.append(f"{head} " + " ".join(labels) if labels else head)
@@ -124,7 +124,7 @@ def labels_present(product: Product) -> set[str]:
     present = {"init"}
     ends = product_ends(product)
     for x in reachable(product):
-        present |= {"end"} if ends[x] == rules.END_HOLDS else set()
+        present |= {"end"} if ends[x] == END_HOLDS else set()
         present |= {"satisfied"} if x == SATISFIED else set()
         present |= {"violated"} if x == VIOLATED else set()
         for c in range(int(product.choice_ptr[x]), int(product.choice_ptr[x + 1])):

@@ -48,6 +48,7 @@ from pathlib import Path
 from types import EllipsisType
 from typing import Any
 
+from mitlc.automata.ends import END_HOLDS
 from mitlc.check.drn import labels_present, reachable, storm_property, to_drn
 from mitlc.check.solve import pmax
 from mitlc.check.storm import storm_guard
@@ -60,7 +61,7 @@ from mitlc.product.explicit import (
     build_product,
     product_ends,
 )
-from mitlc.task import TaskAutomaton, rules
+from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
 
 TARGET_PROPERTY = 'Pmax=? [F "satisfied"]'
@@ -151,7 +152,7 @@ def to_pomdp_drn(
             a = int(product.action[c])
             body.append(f"\taction {world.actions[a] if a >= 0 else f'jump{-1 - a}'}")
             if at_horizon:
-                body.append(f"\t\t{2 if ends[x] == rules.END_HOLDS else 3} : 1")
+                body.append(f"\t\t{2 if ends[x] == END_HOLDS else 3} : 1")
                 continue
             after = step + 1 if (a >= 0 and horizon is not None) else step
             merged: dict[int, float] = {}

@@ -31,6 +31,7 @@ from types import EllipsisType
 import numpy as np
 
 from mitlc.automata.digital import DigitalAutomaton
+from mitlc.automata.ends import END_FAILS, END_HOLDS
 from mitlc.errors import MitlcError
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline, LimitError
 from mitlc.task import TaskAutomaton, TaskMonitor, rules
@@ -120,7 +121,7 @@ def product_ends(product: Product) -> IntArray:
     if product.end is not None:
         return product.end
     end = np.zeros(product.num_states, dtype=np.int64)
-    end[SATISFIED] = rules.END_HOLDS
+    end[SATISFIED] = END_HOLDS
     return end
 
 
@@ -253,7 +254,7 @@ def _build(world: World, monitor: TaskMonitor, clock: Deadline, limit: int | Non
     automaton_state = np.where(codes >= 0, codes // num_s, -1)
     del codes
     end = monitor.ends(np.maximum(automaton_state, 0))
-    end[VIOLATED], end[SATISFIED] = rules.END_FAILS, rules.END_HOLDS
+    end[VIOLATED], end[SATISFIED] = END_FAILS, END_HOLDS
     merged: dict[int, float] = {}
     for x, (_, p) in zip(initial.tolist(), starts, strict=True):
         merged[x] = merged.get(x, 0.0) + p

@@ -82,11 +82,6 @@ def terminated(verdict: T) -> T:
     return verdict != PENDING
 
 
-END_FAILS, END_HOLDS = 0, 1
-"""End codes (:mod:`mitlc.automata.ends`): a stop there fails; succeeds. A code ``e > 1``:
-succeeds once every acceptance set of the mask ``e - 1`` has been seen."""
-
-
 def seen_sets(frontier: T, rounds: T, all_sets: int) -> T:
     """The acceptance sets an episode has seen so far: its frontier, or every set once it has
     completed a round (the frontier of the recursions, :func:`saturate`)."""
