@@ -8,7 +8,7 @@ letter with its acceptance marks, the epsilon jumps of a key, the propositions a
 (:meth:`Rules.reads`: the successor and marks of a key depend on the letter only through
 ``letter & reads(key)``), and the :class:`~mitlc.automata.digital.DigitalState` of a key.
 The store's normal forms do not depend on the order they were made in (its subsumption,
-:meth:`mitlc.automata.terms.TermStore.implies_at_the_end`), so the keys reached do not depend on
+:meth:`mitlc.automata.terms.TermStore.implies`), so the keys reached do not depend on
 the order in which states were discovered: both automata reach the same ones.
 """
 

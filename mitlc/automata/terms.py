@@ -397,17 +397,11 @@ class TermStore:
         return cubes - dropped if dropped else cubes
 
     def _cube_implies(self, stronger: Cube, weaker: Cube) -> bool:
-        """Whether every atom of ``weaker`` is an atom of ``stronger`` or implied by one, also
-        at the end of a trace (:meth:`implies_at_the_end`)."""
-        return all(
-            b in stronger or any(self.implies_at_the_end(a, b) for a in stronger) for b in weaker
-        )
-
-    def implies_at_the_end(self, a: int, b: int) -> bool:
-        """:meth:`implies`, which holds on finite traces and at their end too: a strong delay
-        ``F[k,k] p`` and a window ``F[l,h] p`` around ``k`` both fail there, a weak delay
-        ``G[k,k] p`` and a window ``G[l,h] p`` both hold."""
-        return self.implies(a, b)
+        """Whether every atom of ``weaker`` is an atom of ``stronger`` or implied by one
+        (:meth:`implies`, which holds on finite traces and at their end too, now that a strong
+        delay ``F[k,k] p`` fails there as a window ``F[l,h] p`` around ``k`` does, and a weak
+        ``G[k,k] p`` holds as ``G[l,h] p`` does)."""
+        return all(b in stronger or any(self.implies(a, b) for a in stronger) for b in weaker)
 
     @staticmethod
     def _contained(cubes: Iterable[Cube]) -> Form:
