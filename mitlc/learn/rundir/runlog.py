@@ -105,7 +105,7 @@ def log_window(metrics: Any, tally: Tally, epsilon: float) -> None:
     }
     if tally.costed:
         line["cost"] = round(tally.window_cost / max(tally.window_count, 1), 6)
-    line["rounds"] = round(getattr(tally, "window_rounds", 0.0) / max(tally.window_count, 1), 6)
+    line["rounds"] = round(tally.window_rounds / max(tally.window_count, 1), 6)
     if tally.shielded:
         line["blocked_actions"] = tally.blocked
         line["preventable_violations"] = tally.preventable
