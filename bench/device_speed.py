@@ -16,6 +16,7 @@ from pathlib import Path
 
 from mitlc.learn.config import config_for
 from mitlc.learn.run import train
+from mitlc.worlds.door import open_world
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -35,7 +36,7 @@ RUNS = [  # (world, algo, the budget's setting)
 
 def rate(world: Path, algo: str, budget: dict[str, int], device: str, where: Path) -> float:
     """Env steps per second of one run's training."""
-    config, _ = config_for(world, {"algo": algo, "device": device, **budget})
+    config, _ = config_for(open_world(world), {"algo": algo, "device": device, **budget})
     result = train(world, config, where)
     summary = json.loads((where / "summary.json").read_text())
     return float(summary["steps"]) / max(result.seconds, 1e-9)

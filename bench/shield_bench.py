@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mitlc.learn.config import config_for
 from mitlc.learn.evaluation.evaluate import evaluate
 from mitlc.learn.run import train
+from mitlc.worlds.door import open_world
 
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = {
@@ -45,7 +46,7 @@ def run(task: str, setting: str, seed: int, out: Path) -> dict[str, float | int 
     directory = out / f"{task}-{setting}-s{seed}"
     overrides = {**SETTINGS[setting], "seed": seed, "episodes": episodes}
     if not (directory / "summary.json").exists():
-        config, _ = config_for(world, overrides)
+        config, _ = config_for(open_world(world, spec), overrides)
         started = time.perf_counter()
         train(world, config, directory, spec=spec)
         print(f"  {directory.name}: {time.perf_counter() - started:.1f} s", flush=True)

@@ -215,16 +215,23 @@ def train_command(
     from mitlc.learn.run import train
     from mitlc.learn.rundir.files import RunError
     from mitlc.learn.setting import CONFIG, read_config
+    from mitlc.worlds.door import open_world
 
     overrides = _overrides(settings or [], algo, seed, episodes, device)
     for key, value in (("shield", shield), ("shield_violation", shield_violation)):
         if value is not None:
             overrides[key] = value
+    formula = None
+    override = task_formula(spec, expr)
+    if override is not None:
+        from mitlc.syntax import to_text
+
+        formula = to_text(override)
     if resume and out is not None and (out / CONFIG).is_file():
         _, saved = read_config(out)
-        config, name = config_for(world_file, {**_flatten(saved), **overrides})
-    else:
-        config, name = config_for(world_file, overrides)
+        overrides = {**_flatten(saved), **overrides}
+    world = open_world(world_file, formula)  # the one read and build of the world file
+    config, name = config_for(world, overrides)
     if resume and out is None:
         raise RunError("--resume needs --out: the run directory to continue")
     if config.device == "cuda":  # a machine without CUDA: say so before the set-up
@@ -232,12 +239,6 @@ def train_command(
 
         resolve_device(config.device)
     directory = out or Path("runs") / f"{name}-{config.algo}-s{config.seed}"
-    formula = None
-    override = task_formula(spec, expr)
-    if override is not None:
-        from mitlc.syntax import to_text
-
-        formula = to_text(override)
     sb3 = config.algo.startswith("sb3-")  # Stable-Baselines3's runs count environment steps
     with _StopFlag() as stop, _progress_display(quiet) as display:
         tasks: list[Any] = []  # the bar appears with the first progress, once the run is set up
@@ -266,6 +267,7 @@ def train_command(
             should_stop=stop,
             deadline=command_deadline(time_limit, "train"),
             notes=lambda note: typer.echo(note, err=True),
+            world=world,
         )
     if result.stopped:
         typer.echo(

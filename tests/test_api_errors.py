@@ -19,7 +19,7 @@ from mitlc.errors import MitlcError
 from mitlc.gym import TaskWrapper, TaskWrapperError, TaskWrapperTypeError, make_task_env
 from mitlc.labels import LabelFunctionError
 from mitlc.worlds import WorldError
-from mitlc.worlds.env_task import load_env_task
+from mitlc.worlds.door import load_env_task
 
 PACKAGES = Path(__file__).parent / "packages"
 runner = CliRunner()

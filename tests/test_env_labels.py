@@ -24,7 +24,7 @@ from mitlc.learn.evaluation.exact import policy_success
 from mitlc.product import build_product
 from mitlc.syntax import parse, to_text
 from mitlc.worlds import WorldError
-from mitlc.worlds.env_task import finite_env, load_env_task
+from mitlc.worlds.door import is_finite, load_env_task, open_world
 from mitlc.worlds.gym_world import GymWorldError
 from mitlc.worlds.load import load_world
 from tests.test_episode import REWARDS, ToyText, specs, world_of
@@ -176,7 +176,7 @@ def test_a_world_file_imports_an_installed_package_by_name(
     path = world(tmp_path, "{import: [mitlc_test_envs], id: MitlcTest/Probe-v0}")
     task = load_env_task(path)
     assert "mitlc_test_envs" in sys.modules and task.propositions == ("a",)
-    assert not finite_env(path)  # an attr label: learned through the wrapper
+    assert not is_finite(open_world(path))  # an attr label: learned through the wrapper
     monkeypatch.delitem(sys.modules, "mitlc_test_envs")
     monkeypatch.delitem(gym.registry, "MitlcTest/Probe-v0")
     load_env_task(world(tmp_path, "{id: 'mitlc_test_envs:MitlcTest/Probe-v0'}"))
@@ -218,7 +218,7 @@ def test_wrappers_are_applied_in_order_inside_the_task_wrapper(
     wrappers = f"[{recorder % 'first'}, {recorder % 'second'}]"
     env = f"{{import: [mitlc_test_envs], id: MitlcTest/Probe-v0, wrappers: {wrappers}}}"
     task = load_env_task(world(tmp_path, env))
-    wrapped = task.make(translate(parse("F[0,8] a")))
+    wrapped = task.task_env(translate(parse("F[0,8] a")))
     assert wrapped.unwrapped.wrapped == ["first", "second"]
     assert type(wrapped.env).__name__ == "Recorder" and isinstance(wrapped, TaskWrapper)
 

@@ -17,7 +17,7 @@ from mitlc.learn.config import resolve
 from mitlc.learn.evaluation.evaluate import evaluate
 from mitlc.learn.run import train
 from mitlc.worlds import WorldError
-from mitlc.worlds.env_task import is_open_world, load_env_task
+from mitlc.worlds.door import is_finite, load_env_task, open_world
 
 CHAIN = """
 name: chain
@@ -55,9 +55,9 @@ def test_an_env_without_a_transition_table_loads_with_the_wrappers_label_forms(
     cart = load_env_task(world(tmp_path, CART))
     assert cart.propositions == ("tilted",) and cart.horizon == 20
     assert isinstance(cart.labels["tilted"], list) and cart.is_pomdp is False
-    assert is_open_world(tmp_path / "world.yaml")
-    assert not is_open_world(Path(__file__).parents[1] / "specs" / "gym" / "frozenlake4x4.yaml")
-    env = cart.make("G[0,20] !tilted")
+    assert not is_finite(open_world(tmp_path / "world.yaml"))
+    assert is_finite(open_world(Path(__file__).parents[1] / "specs" / "gym" / "frozenlake4x4.yaml"))
+    env = cart.task_env("G[0,20] !tilted")
     obs, info = env.reset(seed=0)
     assert set(obs) == {"env", "automaton", "frontier"} and "action_mask" in info
 

@@ -25,7 +25,7 @@ from mitlc.cli import app
 from mitlc.learn.plots.plane import plane_figure
 from mitlc.worlds import WorldError, load_world, read_world_file
 from mitlc.worlds.grid import HEADING, check
-from mitlc.worlds.load import is_plane_world, load_plane_world, read_any_world_file
+from mitlc.worlds.load import load_plane_world, read_any_world_file, read_world
 from mitlc.worlds.plane import PlaneWorld
 from mitlc.worlds.plane_env import PlaneEnv, PositionLabels, make_plane_env, plane_task
 from mitlc.worlds.plane_schema import PlaneWorldFile
@@ -383,7 +383,7 @@ def test_check_refuses_a_plane_world_in_one_line(tmp_path: Path) -> None:
     with pytest.raises(WorldError, match="this is a grid world, where a continuous world"):
         load_plane_world(GRIDS["case1"])
     assert isinstance(read_any_world_file(path), PlaneWorldFile)
-    assert is_plane_world(path) and not is_plane_world(GRIDS["case1"])
+    assert read_world(path).kind == "plane" and read_world(GRIDS["case1"]).kind == "grid"
 
 
 def test_the_worlds_package_does_not_import_gymnasium() -> None:

@@ -22,7 +22,7 @@ from mitlc.labels import compile_labels
 from mitlc.labels.probe import attr_problems
 from mitlc.labels.values import MISSING, attribute, step_into
 from mitlc.worlds import WorldError
-from mitlc.worlds.env_task import load_env_task
+from mitlc.worlds.door import load_env_task
 from mitlc.worlds.load import load_world
 from mitlc.worlds.trust import path_key, path_text, trusting
 

@@ -154,7 +154,7 @@ DOT_LIMIT = 2_000
 """Products with more states are not drawn."""
 
 
-def to_product_dot(product: Product, cells: list[tuple[int, int]], actions: tuple[str, ...]) -> str:
+def to_product_dot(product: Product, cells: list[tuple[int, ...]], actions: tuple[str, ...]) -> str:
     """A DOT drawing of a small product: states ``(row,col) q``, one edge per choice and
     target, labelled with the action (``ε→q`` for a jump) and its probability."""
     if product.num_states > DOT_LIMIT:

@@ -475,31 +475,16 @@ def _section_episodes(values: dict[str, Any]) -> dict[str, int]:
     return budgets
 
 
-def config_for(world_file: Any, overrides: Mapping[str, Any]) -> tuple[TrainConfig, str]:
-    """The settings of a run of the world file at ``world_file`` (a path) with ``overrides``
-    (:func:`resolve`), and the world's name. The default learner is the world's: the recurrent
-    DQN for a POMDP (a grid with an observation model, a continuous world with a sensor), DQN
-    for a world that is not finite (a continuous world, an env without a transition table),
-    else tabular Q-learning."""
-    from pathlib import Path
-
-    from mitlc.worlds.load import read_any_world_file
-
-    world_file = Path(world_file)
-    raw = read_any_world_file(world_file)
-    pomdp = getattr(raw, "observation", None) is not None
-    chosen = "algo" in overrides or "algo" in raw.training
-    if hasattr(raw, "plane"):  # a continuous world: a deep learner (recurrent with a sensor)
-        pomdp = raw.plane.sensor is not None
-        if not pomdp and not chosen:
-            overrides = {**overrides, "algo": "dqn"}
-    elif hasattr(raw, "env") and not chosen:
-        from mitlc.worlds.env_task import is_open_world
-
-        if is_open_world(world_file):  # an env that is not finite: DQN reads any observation
-            overrides = {**overrides, "algo": "dqn"}
-    config = resolve(raw.training, overrides, discount=raw.discount, pomdp=pomdp)
-    return config, raw.name or world_file.stem
+def config_for(world: Any, overrides: Mapping[str, Any]) -> tuple[TrainConfig, str]:
+    """The settings of a run on the loaded ``world`` (:func:`mitlc.worlds.door.open_world`)
+    with ``overrides`` (:func:`resolve`) over its file's ``training``, and the world's name.
+    The default learner is the world's own (``world.default_algo``: the recurrent DQN for a
+    POMDP, DQN for a world that is not finite, else tabular Q-learning)."""
+    chosen = "algo" in overrides or "algo" in world.training
+    if not chosen:
+        overrides = {**overrides, "algo": world.default_algo}
+    config = resolve(world.training, overrides, discount=world.discount, pomdp=world.is_pomdp)
+    return config, world.name
 
 
 def to_data(config: TrainConfig) -> dict[str, Any]:

@@ -65,6 +65,7 @@ from mitlc.learn.setting import (
     task_vector_of,
 )
 from mitlc.limits import Deadline
+from mitlc.worlds.door import AnyWorld
 from mitlc.worlds.model import FloatArray
 
 CHECKPOINT = checkpoint.INDEX
@@ -194,13 +195,15 @@ def train(
     should_stop: Callable[[], bool] | None = None,
     deadline: Deadline | None = None,
     notes: Callable[[str], None] | None = None,
+    world: AnyWorld | None = None,
 ) -> RunResult:
     """Train ``config.algo`` on the world file's product for ``config.episodes`` episodes in
     all, writing the run to ``out`` (see the module docstring), which it locks meanwhile.
     ``should_stop`` is polled after every step; when it says so, the run checkpoints and
     returns with ``stopped`` set. ``deadline`` bounds the set-up (compile and product, see
     :func:`prepare`), not the training, which runs its episodes. ``notes`` is given what the
-    user should know before the run (:func:`setting_notes`). Settings outside their bounds
+    user should know before the run (:func:`setting_notes`); ``world`` is the file's world
+    where the caller has loaded it (with ``spec``). Settings outside their bounds
     (:mod:`mitlc.learn.bounds`) are a :class:`~mitlc.learn.config.ConfigError` first."""
     validate(config)
     if config.algo.startswith("sb3-"):  # Stable-Baselines3's runs: mitlc.learn.backends.sb3
@@ -208,10 +211,10 @@ def train(
 
         return sb3.train(
             world_path, config, out, spec=spec, resume=resume, progress=progress,
-            should_stop=should_stop, deadline=deadline, notes=notes,
+            should_stop=should_stop, deadline=deadline, notes=notes, world=world,
         )  # fmt: skip
     directory = Path(out)
-    setting = prepare(world_path, config, spec, deadline=deadline)
+    setting = prepare(world_path, config, spec, deadline=deadline, world=world)
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)

@@ -1,11 +1,12 @@
 """A run's setting, for every kind of world: ``prepare(world_path, config) -> Setting``.
 
 One route for every world: :func:`prepare` loads the world the file declares once
-(:func:`mitlc.product.worlds.open_world`), compiles its task and, where the world is finite,
-builds its product and the simulator's tables. Everything after asks the setting what it
-offers, never the file again: :attr:`Setting.finite`; the world's gymnasium envs under the
-task wrapper (:func:`task_vector_of`, any world); the batches of the Monte-Carlo estimate
-(:func:`batches`: the product's simulator where the world is finite, else its wrapped envs).
+(:func:`mitlc.worlds.door.open_world`, unless the command loaded it), compiles its task and,
+where the world is finite, builds its product and the simulator's tables. Everything after asks
+the setting what it offers, never the file again: :attr:`Setting.finite`; the world's gymnasium
+envs under the task wrapper (:func:`task_vector_of`, any world); the batches of the Monte-Carlo
+estimate (:func:`batches`: the product's simulator where the world is finite, else its wrapped
+envs).
 ``config.json`` (the world file's path, the task, the settings) is written and read here.
 """
 
@@ -79,14 +80,15 @@ def prepare(
     spec: str | None = None,
     *,
     deadline: Deadline | None = None,
+    world: AnyWorld | None = None,
 ) -> Setting:
-    """Load the world, compile its task (``spec`` in its place if given) and, for a finite
-    world, build the product; the compile and the product stop at ``deadline`` (by default
+    """Load the world (``world``: the file's world already loaded by the command, with
+    ``spec``), compile its task (``spec`` in its place if given) and, for a finite world, build
+    the product; the compile and the product stop at ``deadline`` (by default
     :data:`~mitlc.limits.DEFAULT_TIME_LIMIT` seconds)."""
     clock = Deadline.of(deadline, DEFAULT_TIME_LIMIT, "setting up the run")
     world_path = Path(world_path)
-    world = open_world(world_path)
-    if spec is not None and spec != world.spec:
+    if world is None:
         world = open_world(world_path, spec)
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
     if not is_finite(world):

@@ -138,7 +138,7 @@ def _safe(text: str) -> str:
 def load_sweep(path: str | Path) -> Sweep:
     """Read and validate the sweep file at ``path`` (see the module docstring); a
     :class:`SweepError` naming every problem's field."""
-    from mitlc.worlds.load import WorldError, read_yaml
+    from mitlc.worlds.source import WorldError, read_yaml
 
     path = Path(path)
     filename = str(path)
@@ -160,6 +160,8 @@ class _Checker:
     def __init__(self, path: Path, source: Any) -> None:
         self.path, self.source = path, source
         self.problems: list[Any] = []
+        self.loaded: dict[str, Any] = {}
+        """Each world, loaded once (:func:`mitlc.worlds.door.open_world`), by its path."""
 
     def add(self, where: tuple[str | int, ...], message: str, key: bool = False) -> None:
         self.problems.append(self.source.locate(where, message, key=key))
@@ -229,6 +231,7 @@ class _Checker:
                 self.add(("worlds",), "expected a non-empty list of world files")
             return None
         from mitlc.learn.config import config_for
+        from mitlc.worlds.door import open_world
 
         worlds = []
         for i, item in enumerate(value):
@@ -241,7 +244,9 @@ class _Checker:
                          "sweep file)")  # fmt: skip
                 continue
             try:
-                _, name = config_for(world, {})
+                loaded = open_world(world)  # once per world: its settings are checked on it
+                _, name = config_for(loaded, {})
+                self.loaded[str(world)] = loaded
             except MitlcError as err:
                 self.add(("worlds", i), f"the world {item!r} does not load: {_first_line(err)}")
                 continue
@@ -352,7 +357,7 @@ class _Checker:
         from mitlc.learn.config import config_for
 
         try:
-            config_for(Path(world), overrides)
+            config_for(self.loaded[world], overrides)
             return True
         except MitlcError:
             pass
@@ -363,13 +368,13 @@ class _Checker:
         found = False
         for where, key, value in sources:
             try:
-                config_for(Path(world), {"algo": learner.algo, key: value})
+                config_for(self.loaded[world], {"algo": learner.algo, key: value})
             except MitlcError as err:
                 self.add(where, f"{_first_line(err)} (on worlds[{index}])")
                 found = True
         if not found:
             try:
-                config_for(Path(world), overrides)
+                config_for(self.loaded[world], overrides)
             except MitlcError as err:
                 self.add(("learners", learner.name), f"{_first_line(err)} (on worlds[{index}])")
         return False

@@ -76,6 +76,7 @@ def run_trial(
     from mitlc.learn.rundir import checkpoint
     from mitlc.learn.rundir.files import SUMMARY, read_json
     from mitlc.learn.setting import CONFIG
+    from mitlc.worlds.door import open_world
 
     directory = trial_directory(root, trial)
     done = read_result(directory)
@@ -84,12 +85,13 @@ def run_trial(
     directory.mkdir(parents=True, exist_ok=True)
     _write(directory / TRIAL, trial.to_data(), write_atomically)
     (directory / "worker.pid").write_text(f"{os.getpid()}\n", encoding="utf-8")
-    config, _ = config_for(Path(trial.world), trial.overrides)
+    world = open_world(trial.world)  # the one read and build of the world file
+    config, _ = config_for(world, trial.overrides)
     if not (directory / SUMMARY).is_file():
         resume = checkpoint.exists(directory) and (directory / CONFIG).is_file()
         if not resume:  # died before its first checkpoint, or never started: start over
             _clear(directory)
-        train(trial.world, config, directory, resume=resume, progress=progress)
+        train(trial.world, config, directory, resume=resume, progress=progress, world=world)
     evaluation = evaluate(directory, episodes=trial.eval_episodes, seed=trial.seed)
     summary = read_json(directory / SUMMARY)
     learned = evaluation.exact if evaluation.exact is not None else evaluation.success_rate

@@ -76,6 +76,16 @@ class Layout:
         return tuple(kinds)
 
 
+@dataclass(frozen=True, slots=True)
+class GridMap:
+    """What a map of a grid world shows (a world's ``drawing``): its layout, the cells of each
+    of its labels, and where its robots start."""
+
+    layout: Layout
+    labels: tuple[tuple[str, tuple[Cell, ...]], ...]
+    starts: tuple[Cell, ...]
+
+
 def neighbour(cell: Cell, direction: str) -> Cell:
     """The cell next to ``cell`` in ``direction`` (perhaps outside the grid)."""
     dr, dc = DELTA[direction]

@@ -11,12 +11,19 @@ state, in the same compressed-row form over observation ids.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from mitlc.worlds.costs import Costs
+
+if TYPE_CHECKING:
+    from mitlc.gym import TaskWrapper
+    from mitlc.worlds.grid import GridMap
+    from mitlc.worlds.team_model import Team
 
 IntArray = npt.NDArray[np.int64]
 FloatArray = npt.NDArray[np.float64]
@@ -88,6 +95,9 @@ class World:
     rows: int
     cols: int
     cells: tuple[tuple[int, int], ...]
+    """``cells[s]``: the cell ``(row, col)`` of state ``s``; in a team world, the robots' cells
+    as one flat tuple ``(r0, c0, r1, c1, ...)`` (:attr:`team` splits them; the annotation stays
+    the one-robot pair's until the callers that draw cells take joint ones)."""
     actions: tuple[str, ...]
     start: int
     transitions: Sparse
@@ -112,6 +122,28 @@ class World:
     costs: Costs | None = None
     """What the steps of an episode cost beside its success (``costs:``; ``None``: none), read
     through :func:`mitlc.product.costs.product_costs`."""
+    team: Team | None = None
+    """The robots of a team world (:mod:`mitlc.worlds.team`): how its joint states, actions
+    and observations split per robot; ``None`` for a world of one agent."""
+    training: Mapping[str, Any] = field(default_factory=dict)
+    """The file's ``training`` settings (:func:`mitlc.learn.config.config_for` reads them)."""
+    drawing: GridMap | None = None
+    """The map a plot draws trajectories on (``None``: the world has none, e.g. an env's)."""
+
+    @property
+    def default_algo(self) -> str:
+        """The learner a run takes unless told: the recurrent DQN for a POMDP, else tabular
+        Q-learning."""
+        return "drqn" if self.is_pomdp else "q"
+
+    def task_env(self, automaton: Any, *, flatten: bool = False, **options: Any) -> TaskWrapper:
+        """A fresh gymnasium env of the world under its task (the product env,
+        :class:`mitlc.product.env.ProductEnv`), with the task ``automaton`` compiled once for
+        many envs; ``options``: the wrapper's ``task_obs`` and ``potential``."""
+        from mitlc.product.env import ProductEnv
+
+        env: TaskWrapper = ProductEnv(self, automaton, flatten=flatten, **options)
+        return env
 
     @property
     def num_states(self) -> int:

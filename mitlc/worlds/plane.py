@@ -52,6 +52,7 @@ imports no gymnasium; the environment is :class:`mitlc.worlds.plane_env.PlaneEnv
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -191,6 +192,26 @@ class PlaneWorld:
     horizon: int
     discount: float
     rewards: Rewards = field(default_factory=Rewards)
+    training: Mapping[str, Any] = field(default_factory=dict)
+    """The file's ``training`` settings."""
+
+    @property
+    def default_algo(self) -> str:
+        """The learner a run takes unless told: the recurrent DQN with a sensor, else DQN."""
+        return "drqn" if self.is_pomdp else "dqn"
+
+    @property
+    def drawing(self) -> PlaneWorld:
+        """The room is its own map."""
+        return self
+
+    def task_env(self, automaton: Any, *, flatten: bool = False, **options: Any) -> Any:
+        """A fresh gymnasium env of the world under its task
+        (:func:`mitlc.worlds.plane_env.plane_task`), with the task ``automaton`` compiled
+        once for many envs."""
+        from mitlc.worlds.plane_env import plane_task
+
+        return plane_task(self, automaton=automaton, flatten=flatten, **options)
 
     @property
     def num_actions(self) -> int:

@@ -187,7 +187,7 @@ def make_plane_env(
     """The plane world file at ``path`` with its task (or ``spec``, a formula's text, in its
     place) as a :class:`~mitlc.gym.TaskWrapper`; a :class:`mitlc.worlds.WorldError` if the file
     is bad."""
-    from mitlc.worlds.load import load_plane_world
+    from mitlc.worlds.door import load_plane_world
 
     return plane_task(load_plane_world(path, spec), flatten=flatten, render_mode=render_mode)
 

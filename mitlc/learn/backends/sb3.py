@@ -95,6 +95,7 @@ from mitlc.learn.setting import (
 )
 from mitlc.limits import Deadline
 from mitlc.product.worlds import task_env
+from mitlc.worlds.door import AnyWorld
 
 Vectors = npt.NDArray[np.float32]
 
@@ -259,6 +260,7 @@ def train(
     should_stop: Callable[[], bool] | None = None,
     deadline: Deadline | None = None,
     notes: Callable[[str], None] | None = None,
+    world: AnyWorld | None = None,
 ) -> RunResult:
     """Train ``config.algo`` (an ``sb3-*`` name) as :func:`mitlc.learn.run.train` trains
     mitlc's learners (same arguments), for ``config.sb3.steps`` environment steps in all, on
@@ -268,7 +270,7 @@ def train(
     algorithm(config.algo)  # SB3 installed?
     device = resolve_device(config.device)
     directory = Path(out)
-    setting = prepare(world_path, config, spec, deadline=deadline)
+    setting = prepare(world_path, config, spec, deadline=deadline, world=world)
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)

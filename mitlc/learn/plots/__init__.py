@@ -40,7 +40,7 @@ from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, read_config
 from mitlc.limits import Deadline
 from mitlc.syntax import parse
-from mitlc.worlds.load import kind_of
+from mitlc.worlds.grid import GridMap
 from mitlc.worlds.plane import PlaneWorld
 
 __all__ = [
@@ -96,15 +96,15 @@ def _trajectories(
     formula = textwrap.fill(setting.automaton.formula, 110)
     algo = setting.config.algo
     world = setting.world
-    if isinstance(world, PlaneWorld):
+    if isinstance(world.drawing, PlaneWorld):  # a room: the world is its own map
         paths = rollouts_plane(setting, policy, count, seed)
         wins = sum(success for _, success in paths)
         title = (
             f"{name} — {algo}: {wins} of {len(paths)} greedy rollouts succeed (seed {seed})\n"
             f"{formula}"
         )
-        return png_bytes(plane_figure(world, [path for path, _ in paths], title))
-    if not setting.finite or kind_of(setting.world_path) != "grid":  # no grid file to draw
+        return png_bytes(plane_figure(world.drawing, [path for path, _ in paths], title))
+    if not setting.finite or not isinstance(world.drawing, GridMap):  # no grid to draw on
         return None
     drawn = rollouts(setting, policy, count, seed)
     wins = sum(t.success for t in drawn)

@@ -19,8 +19,7 @@ from matplotlib.patches import Patch, Rectangle
 from mitlc.learn.evaluation.trajectories import Trajectory
 from mitlc.learn.plots.common import DPI, PlotError
 from mitlc.learn.setting import Setting
-from mitlc.worlds import read_world_file
-from mitlc.worlds.grid import Layout, check
+from mitlc.worlds.grid import GridMap, Layout
 
 GRID_SIZE = (9.5, 6.5)
 """Inches; at :data:`DPI`, a 950x650 PNG."""
@@ -86,7 +85,7 @@ def _draw_sides(axes: Axes, layout: Layout, width: float) -> None:
 def _draw_cells(
     axes: Axes,
     layout: Layout,
-    labels: dict[str, list[tuple[int, int]]],
+    labels: dict[str, tuple[tuple[int, int], ...]],
     start: tuple[int, int],
     font: float,
 ) -> None:
@@ -248,15 +247,15 @@ def _legend(axes: Axes, layout: Layout, trajectories: list[Trajectory], colours:
 
 def trajectory_figure(setting: Setting, trajectories: list[Trajectory], title: str) -> Figure:
     """The world's grid with ``trajectories`` drawn over it."""
-    world_file = read_world_file(setting.world_path)
-    layout, _ = check(world_file)
-    if layout.cells() != setting.model()[0].cells:
-        raise PlotError(f"{setting.world_path}: the world file changed since the run")
+    drawing = setting.world.drawing
+    if not isinstance(drawing, GridMap):
+        raise PlotError(f"{setting.world_path}: the world has no grid to draw on")
+    layout = drawing.layout
     figure = Figure(figsize=GRID_SIZE, dpi=DPI)
     axes = figure.add_axes((0.03, 0.04, 0.6, 0.8))
     cell_points = 0.8 * GRID_SIZE[1] * 72 / max(layout.rows, layout.cols)
     font = float(np.clip(cell_points * 0.17, 6, 13))
-    _draw_cells(axes, layout, dict(world_file.labels), world_file.start, font)
+    _draw_cells(axes, layout, dict(drawing.labels), drawing.starts[0], font)
     _draw_sides(axes, layout, width=float(np.clip(cell_points * 0.05, 2, 5)))
     colours = _colours(trajectories)
     spacing = min(0.07, 0.5 / max(len(trajectories), 1))
