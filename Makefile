@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[dev,learn,sb3,sweep,envs]'
+	$(BIN)/python -m pip install -q -e '.[dev,learn,sb3,sweep,envs,teams]'
 	touch $(STAMP)
 
 # The main job on the shipped example: the paper's case 1 (a 5x5 grid MDP, task

@@ -81,7 +81,7 @@ def check_arguments(env: Any, spec: Any, labels: Any, options: Mapping[str, Any]
     _check_spec(spec)
     _check_labels(labels)
     _count("horizon", options["horizon"], 1, optional=False)
-    _check_rewards(options["rewards"])
+    check_rewards(options["rewards"])
     _choice("reward_mode", options["reward_mode"], ("replace", "add"))
     if not isinstance(options["flatten"], bool | np.bool_):
         raise TaskWrapperTypeError(f"flatten: expected True or False, got {options['flatten']!r}")
@@ -130,7 +130,7 @@ def _check_labels(labels: Any) -> None:
     check_signature(labels)
 
 
-def _check_rewards(rewards: Any) -> None:
+def check_rewards(rewards: Any) -> None:
     """``rewards`` must be ``None``, reward terms, or a mapping of known terms to numbers."""
     if rewards is None:
         return
@@ -162,12 +162,15 @@ def task_rewards(rewards: TaskRewards | Mapping[str, float] | None) -> TaskRewar
     return rewards
 
 
-def task_of(spec: str | TaskAutomaton, task_obs: str) -> tuple[TaskAutomaton, ClockView | None]:
-    """The automaton of ``spec`` and, with ``task_obs="clocks"``, its clock view."""
+def task_of(
+    spec: str | TaskAutomaton, task_obs: str, source: str = "<spec>"
+) -> tuple[TaskAutomaton, ClockView | None]:
+    """The automaton of ``spec`` and, with ``task_obs="clocks"``, its clock view (``source``:
+    the name a parse error gives the text)."""
     if isinstance(spec, str):
         if task_obs == "state":
-            return translate(parse(spec, "<spec>")), None
-        translation = translate_terms(parse(spec, "<spec>"))
+            return translate(parse(spec, source)), None
+        translation = translate_terms(parse(spec, source))
         return translation.automaton, clock_view(translation)
     if task_obs == "state":
         return spec, None

@@ -1,6 +1,7 @@
 """The task wrapper's parts that are not the task's rules: its observation
-(:class:`TaskObservation`), the env's ``info`` as data a checkpoint holds (:func:`data_only`),
-and the env's own time limit (:func:`time_limit`)."""
+(:class:`TaskObservation`; the task's own part of it, :class:`TaskPart`), the env's ``info``
+as data a checkpoint holds (:func:`data_only`), and the env's own time limit
+(:func:`time_limit`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,41 @@ from gymnasium import spaces
 
 from mitlc.automata.clocks import ClockView
 from mitlc.gym.observations import Readable, readable
+
+
+@dataclass(frozen=True, slots=True)
+class TaskPart:
+    """The task's state as parts of a ``Dict`` observation: ``automaton`` (a ``Discrete`` of
+    the ``num_q`` states), or, with a clock view, ``location`` (a ``Discrete`` of the
+    locations) and ``clocks`` (a ``Box`` in [0, 1], each clock over its bound); then
+    ``frontier`` (a ``Discrete`` of the ``2 ** num_sets`` masks)."""
+
+    spaces: dict[str, spaces.Space[Any]]
+    clocks: ClockView | None = None
+    features: npt.NDArray[np.float32] | None = None
+    """The clock view's features, a row per automaton state."""
+
+    @staticmethod
+    def of(num_q: int, num_sets: int, clocks: ClockView | None = None) -> TaskPart:
+        """The parts of a task with ``num_q`` states and ``num_sets`` acceptance sets."""
+        task: dict[str, spaces.Space[Any]] = {"automaton": spaces.Discrete(num_q)}
+        if clocks is not None:
+            size = (clocks.num_clocks,)
+            task = {
+                "location": spaces.Discrete(clocks.num_locations),
+                "clocks": spaces.Box(0.0, 1.0, size, dtype=np.float32),
+            }
+        task["frontier"] = spaces.Discrete(1 << num_sets)
+        features = None if clocks is None else clocks.features()
+        return TaskPart(task, clocks, features)
+
+    def observe(self, q: int, frontier: int) -> dict[str, Any]:
+        """The parts in automaton state ``q`` with ``frontier``."""
+        if self.clocks is None:
+            return {"automaton": q, "frontier": frontier}
+        clocks = self.features[q, self.clocks.num_locations :]  # type: ignore[index]
+        location = self.clocks.location[q]
+        return {"location": location, "clocks": clocks.copy(), "frontier": frontier}
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,15 +94,8 @@ class TaskObservation:
         its clock view."""
         features = None if clocks is None else clocks.features()
         if not flatten:
-            task: dict[str, spaces.Space[Any]] = {"automaton": spaces.Discrete(num_q)}
-            if clocks is not None:
-                size = (clocks.num_clocks,)
-                task = {
-                    "location": spaces.Discrete(clocks.num_locations),
-                    "clocks": spaces.Box(0.0, 1.0, size, dtype=np.float32),
-                }
-            frontier = spaces.Discrete(1 << num_sets)
-            space = spaces.Dict({env_key: env_space, **task, "frontier": frontier})
+            task = TaskPart.of(num_q, num_sets, clocks).spaces
+            space = spaces.Dict({env_key: env_space, **task})
             return TaskObservation(
                 env_space, env_key, num_q, num_sets, False, space, clocks=clocks, features=features
             )

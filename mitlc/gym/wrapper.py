@@ -94,18 +94,9 @@ from mitlc.gym.arguments import (
 )
 from mitlc.gym.guide import TaskGuide
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
-from mitlc.labels import (
-    LabelDeclarationError,
-    LabelFunction,
-    Labeller,
-    Labels,
-    as_labels,
-    letter_reader,
-)
-from mitlc.labels.function import call_checked
-from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
-from mitlc.labels.values import NO_MOMENT, Moment
-from mitlc.task import VERDICT_NAMES, MonitorState, TaskAutomaton, TaskMonitor
+from mitlc.gym.reading import LetterTaker, run_out
+from mitlc.labels import LabelFunction, Labels, as_labels
+from mitlc.task import VERDICT_NAMES, MonitorState, Outcome, TaskAutomaton, TaskMonitor
 from mitlc.task.rules import VERDICT_CODES, TaskRewards
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -172,14 +163,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self.automaton: TaskAutomaton = automaton
         self.monitor = TaskMonitor(automaton, task_rewards(rewards))
         self.labels = as_labels(labels, env.observation_space)
-        self._function_unchecked = not isinstance(self.labels, Labels)
-        """A labelling function's result is checked once, at the first reset."""
-        self._read = letter_reader(self.labels, automaton.propositions)
-        self._unwrapped = env.unwrapped
-        values = self.labels.values() if isinstance(self.labels, Labeller) else ()
-        guides = self.labels.guides() if isinstance(self.labels, Labeller) else ()
-        self._moment = bool(values or guides)
-        self._probe: list[dict[str, Any]] | None = [] if values or guides else None
+        self._letters = LetterTaker(self.labels, automaton.propositions, env.unwrapped)
         self.held = 0
         """The letters read so far, or-ed: bit ``i`` is set once ``automaton.propositions[i]``
         has held (a proposition that never holds is almost always a mistaken label)."""
@@ -429,12 +413,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
                 if not inner_terminated and not decided and state.steps < self.horizon:
                     self._warn_cut(f"the env truncated its episode at step {state.steps}")
         if self._ended and self._finish:  # no choice is left: the rest of the episode at once
-            horizon, letter = self.horizon, self._letter
-            while not decided and state.steps < horizon:
-                state, more, fresh, gain, verdict, decided, success = monitor.step(state, letter)
-                reward += gain
-                marks |= more
-                new += fresh
+            last = Outcome(state, marks, new, reward, verdict, decided, success)
+            out = run_out(monitor, last, self._letter, self.horizon)
+            state, marks, new, reward, verdict, decided, success = out
         self._state = state
         q, frontier, _, steps = state
         if q >= self._checked_below:
@@ -472,35 +453,13 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self, obs: Any, info: dict[str, Any], reward: float | None, terminated: bool
     ) -> None:
         """Read the letter of the position ``reset`` (``reward`` None) or a step reached, with
-        the moment where the labels read one, and or it into :attr:`held`."""
-        moment = Moment(self._unwrapped, reward, terminated) if self._moment else NO_MOMENT
-        if self._function_unchecked:
-            self._function_unchecked = False
-            call_checked(self.labels, obs, info)
-        if self._moment:
-            if self._probe is not None:
-                self._check_labels(info, reset=reward is None)
-            self._letter = self._read(obs, info, moment)
-        else:
-            self._letter = self._read(obs, info)
+        the moment where the labels read one (:class:`mitlc.gym.reading.LetterTaker`), and or
+        it into :attr:`held`."""
+        moment = self._letters.moment(reward, terminated)
+        self._letter = self._letters.take(obs, info, moment)
         self.held |= self._letter
         if self._guide is not None:
             self._guide.measure(self.labels, obs, info, moment)
-
-    def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
-        """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``
-        paths in the first reset's info or, where one is missing there, the first step's
-        (:mod:`mitlc.labels.probe`); a :class:`~mitlc.labels.LabelDeclarationError` naming
-        each path that is not there."""
-        assert isinstance(self.labels, Labeller) and self._probe is not None
-        seen = self._probe
-        seen.append(info)
-        problems = attr_problems(self.labels, self._unwrapped) if reset and len(seen) == 1 else []
-        if not reset or info_paths_found(self.labels, info):
-            problems += info_problems(self.labels, seen)
-            self._probe = None
-        if problems:
-            raise LabelDeclarationError("\n".join(problems))
 
     def _check_capacity(self, q: int) -> None:
         """A lazy automaton's new states must fit the spaces declared for it."""
