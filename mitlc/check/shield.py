@@ -47,6 +47,7 @@ a round completed: :func:`mitlc.task.rules.saturate`); with no step left nothing
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -67,6 +68,8 @@ TOLERANCE = 1e-12
 ``pmax_horizon``, so an optimal choice passes ``theta = 1`` exactly but for rounding)."""
 
 Bits = npt.NDArray[np.uint8]
+Restrict = Callable[[BoolArray, FloatArray], BoolArray]
+"""Cuts the passing choices ``ok[mask, c]`` (given their worst cases) to a subset."""
 
 
 class ShieldError(ValueError):
@@ -152,13 +155,30 @@ def shield(
     caller has it (it is computed otherwise). Reads ``deadline`` at every step and reserves
     the shield's bits (one per choice, mask and step) before making them."""
     check_settings(theta, delta)
+    return make_shield(product, horizon, theta=theta, delta=delta, values=values,
+                       deadline=deadline)  # fmt: skip
+
+
+def make_shield(
+    product: Product,
+    horizon: int,
+    *,
+    theta: float | None,
+    delta: float | None,
+    values: list[FloatArray] | None = None,
+    deadline: Deadline | None = None,
+    restrict: Restrict | None = None,
+) -> Shield:
+    """:func:`shield`, the passing choices cut by ``restrict`` (``ok[mask, c]`` and their
+    worst cases to a subset, e.g. the per-robot rectangles of
+    :mod:`mitlc.check.team_shield`) at each step before the worst cases are taken."""
     clock = Deadline.none() if deadline is None else deadline
     if values is None:
         _, values = pmax_horizon(product, horizon, deadline=clock)
     masks, choices = 1 << product.num_sets, product.num_choices
     clock.reserve(horizon * masks * (choices // 8 + 1), "the shield's bits")
     bits = np.zeros((horizon, masks, (choices + 7) // 8), dtype=np.uint8)
-    passes = _Passes(product, theta, delta)
+    passes = _Passes(product, theta, delta, restrict)
     for r in range(1, horizon + 1):
         clock.check_now()
         bits[r - 1] = np.packbits(passes.step(values[r]), axis=1)
@@ -179,8 +199,14 @@ class _Passes:
     """The backward pass: ``worst`` (``W``), ``risk`` (``Z``) and ``least`` (``U``) after the
     steps done so far, one step at a time."""
 
-    def __init__(self, product: Product, theta: float | None, delta: float | None) -> None:
-        self.product, self.theta, self.delta = product, theta, delta
+    def __init__(
+        self,
+        product: Product,
+        theta: float | None,
+        delta: float | None,
+        restrict: Restrict | None = None,
+    ) -> None:
+        self.product, self.theta, self.delta, self.restrict = product, theta, delta, restrict
         self.matrices = mask_matrices(product)
         self.moves = _Moves.of(product)
         self.is_jump, self.owner, self.jumps = (
@@ -208,6 +234,8 @@ class _Passes:
         q_risk = np.stack([m @ self.risk.ravel() for m in self.matrices])
         least = self.moves.least_step(self.least)
         ok = self._tests(q_worst, q_risk, best[:, owner], least[owner]) & ~is_jump
+        if self.restrict is not None:
+            ok = self.restrict(ok, q_worst)
         worst = _reduce(np.minimum, np.where(ok, q_worst, np.inf), ptr)
         risk = _reduce(np.maximum, np.where(ok, q_risk, -np.inf), ptr)
         for source, target, c in self.jumps:
@@ -224,6 +252,8 @@ class _Passes:
         if empty.any():
             stuck = empty[:, owner]
             ok = np.where(stuck, self._fallback(q_worst, q_risk, least[owner]), ok)
+            if self.restrict is not None:
+                ok = self.restrict(ok, q_worst)
             worst = _reduce(np.minimum, np.where(ok, q_worst, np.inf), ptr)
             risk = _reduce(np.maximum, np.where(ok, q_risk, -np.inf), ptr)
         for table in (worst, risk):
