@@ -482,6 +482,14 @@ MAX_GRID_CELLS = 1_000_000
 """Cells of a world's grid (rows x cols): a 1000x1000 grid. The product of a 100x100 world
 already has 3 million states and takes 14 s to build (README, ``make bench-check``)."""
 
+MAX_TEAM_TRANSITIONS = 40_000_000
+"""The most entries (joint state, joint action, outcome) of a team world's joint transition
+table, and of its joint observation table, counted before they are built
+(:mod:`mitlc.worlds.team`). An entry costs 16 bytes in the table (plus 8 a row): three robots
+with five actions each and certain moves on an 8x8 grid, collisions blocked (250,000 joint
+states, 31 million entries), take about 4 s and 1 GB to build, within the limit; the same
+robots with sideways slips (530 million entries) are far past it."""
+
 MAX_HORIZON = 10_000
 """The largest ``horizon`` of a world. The paper's horizons are 30 and 40, ``make bench-check``
 uses 401 on a 100x100 grid; ``mitlc check`` keeps a value table per step (``horizon + 1`` of
