@@ -396,6 +396,20 @@ def test_the_shipped_team_world_loads(capsys: pytest.CaptureFixture[str]) -> Non
     assert capsys.readouterr() == ("", "")
 
 
+def test_the_team_declaration(tmp_path: Path) -> None:
+    from mitlc.worlds.load import read_mapping
+    from mitlc.worlds.team_load import TeamDeclaration, read_team_file
+
+    path = ROOT / "specs" / "teams" / "two-robots.yaml"
+    declaration = TeamDeclaration.read(path, read_mapping(path))
+    assert declaration.kind == "team" and declaration.name == "two-robots"
+    world = declaration.finite("F a_robot_1")
+    assert world.propositions == ("a_robot_1",) and world.spec_source == "<spec>"
+    grid = ROOT / "specs" / "paper" / "case1.yaml"
+    with pytest.raises(WorldError, match="this is not a team world"):
+        read_team_file(grid)
+
+
 # --- the PettingZoo env ------------------------------------------------------------------------
 
 

@@ -290,6 +290,7 @@ def build_team_world(
         rewards=world.reward.rewards(),
         observations=joint_observations(robots, positions, cells),
         team=team,
+        training=dict(world.training),
     )
 
 

@@ -10,6 +10,8 @@ problem names the file, the line and column, the field's path and the offending 
 from __future__ import annotations
 
 import difflib
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,11 +20,12 @@ from pydantic import ValidationError
 from mitlc.limits import MAX_TEAM_TRANSITIONS
 from mitlc.worlds.grid import FieldPath, Layout
 from mitlc.worlds.load import (
+    Source,
     WorldError,
-    _load_spec,
-    _mapping,
-    _require_labelled,
     from_pydantic,
+    read_mapping,
+    require_labelled,
+    task_of,
 )
 from mitlc.worlds.model import World
 from mitlc.worlds.schema import OBSERVATION_TYPES
@@ -38,21 +41,20 @@ MOVED = {
 """Grid fields a team file does not have, and what to write instead."""
 
 
+def claims(data: Mapping[str, Any]) -> bool:
+    """Whether a world file's mapping declares a team of robots (``robots:``)."""
+    return "robots" in data
+
+
 def is_team_file(data: object) -> bool:
     """Whether a world file's YAML (its value) declares a team of robots (``robots:``)."""
-    return isinstance(data, dict) and "robots" in data
+    return isinstance(data, dict) and claims(data)
 
 
-def read_team_file(path: str | Path) -> tuple[TeamWorldFile, Layout, Any]:
-    """The validated team file at ``path`` (shape and whole-file checks), its layout and its
-    YAML (to locate a problem at a field); a :class:`WorldError` with every problem if it is
-    bad or not a team file."""
-    path = Path(path)
+def validate(path: Path, source: Source) -> tuple[TeamWorldFile, Layout]:
+    """The team file's shape (pydantic) and its whole-file checks
+    (:func:`~mitlc.worlds.team.check_team`); a :class:`WorldError` with every problem."""
     filename = str(path)
-    source = _mapping(path)
-    if not is_team_file(source.data):
-        message = "this is not a team world: a team world declares its robots (robots: ...)"
-        raise WorldError(filename, [source.locate((), message)])
     try:
         world = TeamWorldFile.model_validate(source.data)
     except ValidationError as err:
@@ -61,7 +63,7 @@ def read_team_file(path: str | Path) -> tuple[TeamWorldFile, Layout, Any]:
     layout, found = check_team(world)
     if found:
         raise WorldError(filename, [source.locate(p, m) for p, m in found])
-    return world, layout, source
+    return world, layout
 
 
 def shape_problems(error: ValidationError) -> list[tuple[FieldPath, str, bool]]:
@@ -92,40 +94,88 @@ def _unknown(loc: tuple[str | int, ...]) -> str:
     )
 
 
+@dataclass(frozen=True, slots=True)
+class TeamDeclaration:
+    """A validated team world file (a declaration of :mod:`mitlc.worlds.door`'s kind
+    ``team``: ``Kind("team", claims, TeamDeclaration.read)``, asked before the grid)."""
+
+    path: Path
+    source: Source
+    file: TeamWorldFile
+    layout: Layout
+    limit: int = MAX_TEAM_TRANSITIONS
+    kind = "team"
+
+    @staticmethod
+    def read(path: Path, source: Source) -> TeamDeclaration:
+        """The declaration of the team file at ``path`` (its YAML already read: ``source``)."""
+        return TeamDeclaration(path, source, *validate(path, source))
+
+    @property
+    def name(self) -> str:
+        """The world's name: the file's ``name``, else the file's stem."""
+        return self.file.name or self.path.stem
+
+    def finite(self, spec: str | None = None) -> World:
+        """The joint world: a team on a grid is finite."""
+        return self.build(spec)
+
+    def build(self, spec: str | None = None) -> World:
+        """The joint world, its task replaced by ``spec`` (a formula's text) when given; a
+        :class:`WorldError` if the task reads a proposition the file does not label, or the
+        joint tables would have more than ``limit`` entries (at ``robots``)."""
+        path, source, world = self.path, self.source, self.file
+        text, spec_source, propositions = task_of(world, path, source, spec)
+        known, _ = meanings(world)
+        robots = list(world.robots.values())
+
+        def labels_a_cell(name: str) -> bool:
+            meaning = known[name]
+            if meaning.kind == "collision":
+                return True
+            own = robots[meaning.robot].labels if meaning.kind == "robot" else {}
+            return bool(world.labels.get(meaning.label) or own.get(meaning.label))
+
+        missing = [p for p in propositions if p not in known or not labels_a_cell(p)]
+        labelled = [p for p in known if labels_a_cell(p)]
+        told = (text, spec_source)
+        require_labelled(path, source, told, missing, labelled, "labels no cell of any robot")
+        try:
+            return build_team_world(
+                world,
+                self.layout,
+                name=self.name,
+                spec=text,
+                spec_source=spec_source,
+                propositions=propositions,
+                limit=self.limit,
+            )
+        except TeamError as err:
+            problems = [source.locate(p, m, key=True) for p, m in err.found]
+            raise WorldError(str(path), problems) from None
+
+
+def read_team_file(path: str | Path) -> TeamDeclaration:
+    """The validated team file at ``path``; a :class:`WorldError` with every problem if it
+    is bad or not a team file."""
+    path = Path(path)
+    source = read_mapping(path)
+    if not is_team_file(source.data):
+        message = "this is not a team world: a team world declares its robots (robots: ...)"
+        raise WorldError(str(path), [source.locate((), message)])
+    return TeamDeclaration.read(path, source)
+
+
 def load_team_world(
     path: str | Path, spec: str | None = None, *, limit: int = MAX_TEAM_TRANSITIONS
 ) -> World:
     """Load, validate and build the team world at ``path``; a :class:`WorldError` if it is
-    bad, its task reads a proposition it does not label, or its joint tables would be larger
+    bad, its task reads a proposition it does not label, or its joint tables would have more
     than ``limit`` entries (at ``robots``). ``spec`` (a formula's text) replaces the file's
     task, as for :func:`mitlc.worlds.load.load_world`."""
-    path = Path(path)
-    world, layout, source = read_team_file(path)
-    text, spec_source, propositions = _load_spec(world, path, source, spec)
-    known, _ = meanings(world)
-    robots = list(world.robots.values())
-
-    def labels_a_cell(name: str) -> bool:
-        meaning = known[name]
-        if meaning.kind == "collision":
-            return True
-        own = robots[meaning.robot].labels if meaning.kind == "robot" else {}
-        return bool(world.labels.get(meaning.label) or own.get(meaning.label))
-
-    missing = [p for p in propositions if p not in known or not labels_a_cell(p)]
-    labelled = [p for p in known if labels_a_cell(p)]
-    told = (text, spec_source)
-    _require_labelled(path, source, told, missing, labelled, "labels no cell of any robot")
-    try:
-        return build_team_world(
-            world,
-            layout,
-            name=world.name or path.stem,
-            spec=text,
-            spec_source=spec_source,
-            propositions=propositions,
-            limit=limit,
+    declaration = read_team_file(path)
+    if limit != declaration.limit:
+        declaration = TeamDeclaration(
+            declaration.path, declaration.source, declaration.file, declaration.layout, limit
         )
-    except TeamError as err:
-        problems = [source.locate(p, m, key=True) for p, m in err.found]
-        raise WorldError(str(path), problems) from None
+    return declaration.build(spec)
