@@ -20,10 +20,10 @@ from mitlc.check.solve import pmax, pmax_horizon
 from mitlc.product.explicit import SATISFIED, build_product
 from mitlc.syntax import parse
 from mitlc.worlds.grid import Layout, transitions
+from mitlc.worlds.kinds.team import load_team_world
 from mitlc.worlds.load import WorldError
 from mitlc.worlds.model import World
 from mitlc.worlds.schema import Motion
-from mitlc.worlds.team_load import load_team_world
 from tests.conftest import ROOT
 
 CERTAIN = "{intended: 1.0, sideways: 0.0}"
@@ -397,8 +397,8 @@ def test_the_shipped_team_world_loads(capsys: pytest.CaptureFixture[str]) -> Non
 
 
 def test_the_team_declaration(tmp_path: Path) -> None:
+    from mitlc.worlds.kinds.team import TeamDeclaration, read_team_file
     from mitlc.worlds.load import read_mapping
-    from mitlc.worlds.team_load import TeamDeclaration, read_team_file
 
     path = ROOT / "specs" / "teams" / "two-robots.yaml"
     declaration = TeamDeclaration.read(path, read_mapping(path))

@@ -26,10 +26,6 @@ from mitlc.worlds.source import (
     world_costs,
 )
 
-_mapping = read_mapping
-_load_spec = task_of
-_require_labelled = require_labelled
-
 __all__ = [
     "Problem",
     "Source",

@@ -56,7 +56,7 @@ import numpy as np
 
 from mitlc.errors import MitlcError
 from mitlc.limits import MAX_TEAM_TRANSITIONS
-from mitlc.worlds.grid import MAX_CELLS, FieldPath, Found, Layout, _Checker, render
+from mitlc.worlds.grid import MAX_CELLS, FieldPath, Found, GridMap, Layout, _Checker, render
 from mitlc.worlds.model import BoolArray, IntArray, World
 from mitlc.worlds.schema import show
 from mitlc.worlds.team_model import Team, radix_parts
@@ -291,6 +291,9 @@ def build_team_world(
         observations=joint_observations(robots, positions, cells),
         team=team,
         training=dict(world.training),
+        drawing=GridMap(
+            layout, tuple((p, tuple(c)) for p, c in sorted(world.labels.items())), starts
+        ),
     )
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mitlc.worlds.kinds import env, grid, plane
+from mitlc.worlds.kinds import env, grid, plane, team
 
 if TYPE_CHECKING:
     from mitlc.worlds.door import Declaration
@@ -32,6 +32,7 @@ class Kind:
 KINDS: tuple[Kind, ...] = (
     Kind("plane", plane.claims, plane.PlaneDeclaration.read),
     Kind("env", env.claims, env.EnvDeclaration.read),
+    Kind("team", team.claims, team.TeamDeclaration.read),
     Kind("grid", grid.claims, grid.GridDeclaration.read),
 )
 """The kinds, in the order they are asked; the last (the grid) claims every mapping."""

@@ -19,7 +19,9 @@ from pydantic import ValidationError
 
 from mitlc.limits import MAX_TEAM_TRANSITIONS
 from mitlc.worlds.grid import FieldPath, Layout
-from mitlc.worlds.load import (
+from mitlc.worlds.model import World
+from mitlc.worlds.schema import OBSERVATION_TYPES
+from mitlc.worlds.source import (
     Source,
     WorldError,
     from_pydantic,
@@ -27,8 +29,6 @@ from mitlc.worlds.load import (
     require_labelled,
     task_of,
 )
-from mitlc.worlds.model import World
-from mitlc.worlds.schema import OBSERVATION_TYPES
 from mitlc.worlds.team import TeamError, build_team_world, check_team, meanings
 from mitlc.worlds.team_schema import TEAM_MODELS, TeamWorldFile
 
