@@ -48,6 +48,7 @@ Algorithm = Literal[
 ]
 Device = Literal["auto", "cpu", "cuda"]
 TaskObs = Literal["auto", "state", "clocks"]
+TeamMode = Literal["joint", "independent", "shared"]
 DEFAULT_EPISODES = {"q": 300_000, "dqn": 5_000, "drqn": 20_000}
 
 
@@ -279,6 +280,11 @@ class TrainConfig:
     shield_audit: bool = False
     """Compute the shield but do not keep to it: ``metrics.jsonl`` records the actions taken
     that it blocks and the violations that followed one (for a side-by-side benchmark)."""
+    team: TeamMode = "joint"
+    """How a team of robots learns (a team world, :mod:`mitlc.learn.learners.team`):
+    ``joint``, one learner over the joint state and the joint action; ``independent``, one
+    learner per robot (``q``: a table each) over its own observation and the task's state;
+    ``shared``, one network for every robot with the robot's id in its input (``dqn``)."""
     q: QConfig = field(default_factory=QConfig)
     dqn: DQNConfig = field(default_factory=DQNConfig)
     drqn: DRQNConfig = field(default_factory=DRQNConfig)

@@ -88,6 +88,8 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
         else None
     )
     shaping = ProductShaping(phi) if phi is not None else None
+    if config.team != "joint":
+        return _team_learner(setting, phi, shaping, rng)
     if world.is_pomdp and config.algo == "q":
         return _observed_q(setting, table, phi, rng)
     if world.is_pomdp and config.algo != "drqn":
@@ -115,6 +117,40 @@ def make_learner(setting: Setting, rng: np.random.Generator) -> Learner:
 
     encoder = Encoder(table, config.drqn.previous_action, task_features=task)
     return DRQNLearner(table, config, rng, shaping, encoder=encoder)
+
+
+def _team_learner(
+    setting: Setting,
+    phi: FloatArray | None,
+    shaping: ProductShaping | None,
+    rng: np.random.Generator,
+) -> Learner:
+    """A team's decentralised learner (``team: independent`` or ``shared``,
+    :mod:`mitlc.learn.learners.team`)."""
+    from mitlc.learn.learners.encoder import task_features
+    from mitlc.learn.learners.team import IndependentQLearner, RobotView, TeamLearnerError
+    from mitlc.learn.learners.team_dqn import SharedDQNLearner
+
+    world, _, table = setting.model()
+    config, mode = setting.config, setting.config.team
+    if world.team is None:
+        raise RunError(f"team: {mode} is for a team of robots (a world with robots:); "
+                       f"{world.name} has one agent")  # fmt: skip
+    try:
+        view = RobotView(world.team, table, world.is_pomdp)
+    except TeamLearnerError as err:
+        raise RunError(f"team: {mode}: {err}") from None
+    wanted = {"independent": "q", "shared": "dqn"}[mode]
+    if config.algo != wanted:
+        raise RunError(f"team: {mode} learns with algo {wanted}, not {config.algo} (team: "
+                       "independent with q, a table per robot; team: shared with dqn, one "
+                       "network for every robot; team: joint with any learner)")  # fmt: skip
+    if (config.q.crm and mode == "independent") or (config.dqn.crm and mode == "shared"):
+        raise RunError(f"team: {mode}: counterfactual experience is for joint learners")
+    if mode == "independent":
+        return IndependentQLearner(view, config, rng, phi)
+    features = task_features(setting.automaton, config.task_obs)
+    return SharedDQNLearner(view, config, rng, shaping, features)
 
 
 def _observed_q(

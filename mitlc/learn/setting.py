@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from mitlc.product.worlds import AnyWorld, is_finite, open_world, task_env
 from mitlc.syntax import parse
 from mitlc.task.horizon import short_horizon_note
 from mitlc.worlds.model import World
+
+if TYPE_CHECKING:
+    from mitlc.check.shield import Shield
 
 CONFIG = "config.json"
 
@@ -141,7 +144,7 @@ def _shielded(
     world: World, product: Product, simulated: Tables, config: TrainConfig, clock: Deadline
 ) -> Tables:
     """``simulated`` with the shield the settings ask for (:mod:`mitlc.check.shield`)."""
-    from mitlc.check.shield import Shield, ShieldError, shield
+    from mitlc.check.shield import ShieldError, shield
     from mitlc.check.shield_observed import ObservedShield, observed_shield
 
     if config.algo.startswith("sb3-") and config.algo != "sb3-maskable-ppo":
@@ -153,7 +156,9 @@ def _shielded(
     theta = config.shield if config.shield > 0 else None
     delta = config.shield_violation if config.shield_violation < 1 else None
     made: Shield | ObservedShield
-    if world.is_pomdp:
+    if world.team is not None and config.team != "joint":  # the robots choose on their own
+        made = _team_shield(world, product, config, theta, delta, clock)
+    elif world.is_pomdp:
         if config.algo.startswith("sb3-"):
             raise ConfigError(
                 f"{world.name}: a POMDP's shield (over its observations) reaches mitlc's own "
@@ -167,6 +172,29 @@ def _shielded(
     else:
         made = shield(product, world.horizon, theta=theta, delta=delta, deadline=clock)
     return replace(simulated, shield=made, shield_enforced=not config.shield_audit)
+
+
+def _team_shield(
+    world: World,
+    product: Product,
+    config: TrainConfig,
+    theta: float | None,
+    delta: float | None,
+    clock: Deadline,
+) -> Shield:
+    """The per-robot shield of a team learning on its own (:mod:`mitlc.check.team_shield`):
+    every combination of the robots' masks keeps the guarantee."""
+    from mitlc.check.team_shield import team_shield
+
+    assert world.team is not None
+    if world.is_pomdp:
+        raise ConfigError(
+            f"{world.name}: a per-robot shield over noisy observations is not built; shield "
+            f"the team with team: joint, or learn team: {config.team} without one"
+        )
+    radices = tuple(len(actions) for actions in world.team.actions)
+    return team_shield(product, world.horizon, radices, theta=theta, delta=delta,
+                       deadline=clock)  # fmt: skip
 
 
 SMALL_NETWORKS_ON_CUDA = (

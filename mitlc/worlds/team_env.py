@@ -8,8 +8,13 @@ names). A step samples the next joint state from the joint world's own transitio
 (``World.transitions``: the one definition of motion, blocking and collisions), then each
 modelled robot's observation, in robot order, from one generator seeded by ``reset(seed=...)``.
 Rewards are 0 (the task is the wrapper's: :mod:`mitlc.pettingzoo`); every agent is truncated
-at the world's horizon. ``infos[agent]`` holds ``cell`` (``[row, col]``) and ``collide``: the
-agent shares its cell with another, or swapped cells with another on this step.
+at the world's horizon. ``infos[agent]`` holds ``cell`` (``[row, col]``), ``collide`` (the
+agent shares its cell with another, or swapped cells with another on this step) and ``state``,
+the joint state.
+
+:func:`team_task` puts the world's task on it (:class:`mitlc.pettingzoo.TeamTaskWrapper`),
+the team's propositions read from the joint state's letter (``World.letters``, the one
+definition of the team's labels).
 """
 
 from __future__ import annotations
@@ -151,5 +156,36 @@ class TeamGridEnv(ParallelEnv):  # type: ignore[misc]
                 collide |= any(
                     now[r] == was[j] and now[j] == was[r] and was[r] != was[j] for j in others
                 )
-            out[agent] = {"cell": list(self.team.cells[int(now[r])]), "collide": bool(collide)}
+            out[agent] = {
+                "cell": list(self.team.cells[int(now[r])]),
+                "collide": bool(collide),
+                "state": int(self._state),
+            }
         return out
+
+
+def team_task(world: World, automaton: Any = None, **options: Any) -> Any:
+    """The team world under its task (``automaton``: the task compiled once; default: the
+    world's spec) as a :class:`mitlc.pettingzoo.TeamTaskWrapper`; the team's propositions are
+    the joint state's letter (``world.letters[infos[agent]["state"]]``). ``options``: the
+    wrapper's others (``task_obs``, ``shield``, ...)."""
+    from mitlc.pettingzoo import TeamTaskWrapper
+
+    letters, names = world.letters, world.propositions
+
+    def labels(observations: Any, infos: dict[str, dict[str, Any]]) -> set[str]:
+        if not infos:
+            return set()
+        state = next(iter(infos.values()))["state"]
+        letter = int(letters[state])
+        return {p for i, p in enumerate(names) if letter >> i & 1}
+
+    return TeamTaskWrapper(
+        TeamGridEnv(world),
+        team=world.spec if automaton is None else automaton,
+        team_labels=labels,
+        horizon=world.horizon,
+        rewards={"accept": world.rewards.accept, "satisfied": world.rewards.satisfied,
+                 "violated": world.rewards.violated},
+        **options,
+    )  # fmt: skip
