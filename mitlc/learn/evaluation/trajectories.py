@@ -5,7 +5,8 @@ only. A trajectory lists the product positions the episode went through: the wor
 automaton state and the world step (epsilon jumps take no step, so a step number repeats
 across a jump). The step that enters the absorbing *satisfied* or *violated* state ends the
 episode; that state has no cell, so the trajectory ends in the last real cell (the one whose
-letter decided the verdict).
+letter decided the verdict). In a team world a cell is the robots' joint tuple
+``(r0, c0, r1, c1, ...)``; :func:`robot_cells` splits a trajectory into each robot's cells.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from mitlc.learn.learners.base import Policy
 from mitlc.learn.setting import Setting
 from mitlc.product.explicit import SATISFIED, VIOLATED
 from mitlc.worlds.model import BoolArray, IntArray
+from mitlc.worlds.team_model import Team
 
 Cell = tuple[int, int]
 
@@ -31,7 +33,7 @@ class Trajectory:
     world_states: tuple[int, ...]
     """Indices into ``world.cells``."""
     cells: tuple[Cell, ...]
-    """``(row, col)`` of each position."""
+    """``(row, col)`` of each position (a team world's: the joint ``world.cells`` tuple)."""
     automaton_states: tuple[int, ...]
     steps: tuple[int, ...]
     """World actions taken before each position (0 at the start)."""
@@ -55,6 +57,15 @@ class Trajectory:
             else:
                 merged.append((cell, step, step))
         return merged
+
+
+def robot_cells(trajectory: Trajectory, team: Team) -> tuple[tuple[Cell, ...], ...]:
+    """Each robot's ``(row, col)`` at each position of a team world's ``trajectory``, in the
+    team's robot order (read from ``team.positions``)."""
+    indices = team.positions[np.asarray(trajectory.world_states, dtype=np.int64)]
+    return tuple(
+        tuple(team.cells[i] for i in indices[:, r].tolist()) for r in range(team.num_robots)
+    )
 
 
 class _Recorder:

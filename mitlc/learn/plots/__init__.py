@@ -4,8 +4,11 @@
   against the episodes (the paper's cumulative-reward figure), with the exploration rate
   (:mod:`mitlc.learn.plots.common`);
 * ``trajectories.png``: a few greedy rollouts of the learned policy where the world has a map to
-  draw them on: a grid world's cells (:mod:`mitlc.learn.plots.grid`), a continuous world's
-  room (:mod:`mitlc.learn.plots.plane`); a gymnasium env has none;
+  draw them on: a grid world's cells (:mod:`mitlc.learn.plots.grid`), a team world's grid with
+  every robot's path in its colour (:mod:`mitlc.learn.plots.team`), a continuous world's room
+  (:mod:`mitlc.learn.plots.plane`); a gymnasium env has none;
+* ``episode.gif`` (team worlds): the first of those rollouts animated, one frame per step, the
+  robots as discs in their colours (:func:`mitlc.learn.plots.team.episode_gif`);
 * ``automaton.png``: the run's task compiled to its timed LDGBA, drawn by Graphviz
   (:mod:`mitlc.automata.dot`).
 
@@ -27,6 +30,7 @@ from mitlc.learn.plots.common import (
     AUTOMATON,
     CURVE_SIZE,
     DPI,
+    EPISODE,
     LEARNING_CURVE,
     TRAJECTORIES,
     PlotError,
@@ -36,6 +40,7 @@ from mitlc.learn.plots.common import (
 )
 from mitlc.learn.plots.grid import GRID_SIZE, trajectory_figure
 from mitlc.learn.plots.plane import plane_figure, rollouts_plane
+from mitlc.learn.plots.team import episode_gif, team_figure
 from mitlc.learn.run import load_learner
 from mitlc.learn.setting import Setting, read_config
 from mitlc.limits import Deadline
@@ -47,6 +52,7 @@ __all__ = [
     "AUTOMATON",
     "CURVE_SIZE",
     "DPI",
+    "EPISODE",
     "GRID_SIZE",
     "LEARNING_CURVE",
     "TRAJECTORIES",
@@ -76,10 +82,9 @@ def plot_run(
     curve = out / LEARNING_CURVE
     write_atomically(curve, png_bytes(learning_curve(metrics, f"{name} — {config.algo}")))
     written = [curve]
-    drawn = _trajectories(setting, learner.policy(), name, trajectories, seed)
-    if drawn is not None:
-        write_atomically(out / TRAJECTORIES, drawn)
-        written.append(out / TRAJECTORIES)
+    for file, drawn in _trajectories(setting, learner.policy(), name, trajectories, seed):
+        write_atomically(out / file, drawn)
+        written.append(out / file)
     automaton = out / AUTOMATON
     timed = compile_formula(
         parse(setting.world.spec, setting.world.spec_source), deadline=deadline
@@ -90,9 +95,10 @@ def plot_run(
 
 def _trajectories(
     setting: Setting, policy: Policy, name: str, count: int, seed: int
-) -> bytes | None:
-    """The PNG of ``count`` greedy rollouts on the world's map, or ``None`` where it has none
-    (a gymnasium env, finite or not)."""
+) -> list[tuple[str, bytes]]:
+    """The PNG of ``count`` greedy rollouts on the world's map (and a team world's GIF of the
+    first), as (file name, bytes); none where the world has no map (a gymnasium env, finite or
+    not)."""
     formula = textwrap.fill(setting.automaton.formula, 110)
     algo = setting.config.algo
     world = setting.world
@@ -103,12 +109,20 @@ def _trajectories(
             f"{name} — {algo}: {wins} of {len(paths)} greedy rollouts succeed (seed {seed})\n"
             f"{formula}"
         )
-        return png_bytes(plane_figure(world.drawing, [path for path, _ in paths], title))
+        return [
+            (TRAJECTORIES, png_bytes(plane_figure(world.drawing, [p for p, _ in paths], title)))
+        ]
     if not setting.finite or not isinstance(world.drawing, GridMap):  # no grid to draw on
-        return None
+        return []
     drawn = rollouts(setting, policy, count, seed)
     wins = sum(t.success for t in drawn)
     title = (
         f"{name} — {algo}: {wins} of {len(drawn)} greedy rollouts succeed (seed {seed})\n{formula}"
     )
-    return png_bytes(trajectory_figure(setting, drawn, title))
+    if setting.model()[0].team is None:
+        return [(TRAJECTORIES, png_bytes(trajectory_figure(setting, drawn, title)))]
+    episode = drawn[0] if drawn else rollouts(setting, policy, 1, seed)[0]
+    return [
+        (TRAJECTORIES, png_bytes(team_figure(setting, drawn, title))),
+        (EPISODE, episode_gif(setting, episode, f"{name} — {algo}, greedy (seed {seed})")),
+    ]

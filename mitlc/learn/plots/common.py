@@ -19,6 +19,7 @@ from mitlc.learn.rundir.files import METRIC_FIELDS, METRICS, RunError, read_metr
 from mitlc.worlds.model import FloatArray
 
 LEARNING_CURVE, TRAJECTORIES, AUTOMATON = "learning_curve.png", "trajectories.png", "automaton.png"
+EPISODE = "episode.gif"
 DPI = 100
 CURVE_SIZE = (8.0, 6.0)
 """Inches; at :data:`DPI`, an 800x600 PNG."""

@@ -86,10 +86,9 @@ def _draw_cells(
     axes: Axes,
     layout: Layout,
     labels: dict[str, tuple[tuple[int, int], ...]],
-    start: tuple[int, int],
     font: float,
 ) -> None:
-    """Blocked cells black, labelled cells coloured with their names, the start starred."""
+    """Blocked cells black, labelled cells coloured with their names."""
     for row, col in sorted(layout.blocked):
         axes.add_patch(Rectangle((col, row), 1, 1, color="black", zorder=2))
     palette = [f"C{i}" for i in range(10)]
@@ -121,19 +120,31 @@ def _draw_cells(
             color="0.15",
             zorder=6,
         )
+
+
+def _draw_start(
+    axes: Axes,
+    start: tuple[int, int],
+    font: float,
+    *,
+    colour: Any = "gold",
+    text: str = "start",
+    shift: float = 0.0,
+) -> None:
+    """A star at ``start``'s centre (moved right by ``shift``) with ``text`` below it."""
     axes.plot(
-        start[1] + 0.5,
+        start[1] + 0.5 + shift,
         start[0] + 0.5,
         marker="*",
         markersize=font * 1.6,
-        color="gold",
+        color=colour,
         markeredgecolor="black",
         zorder=5,
     )
     axes.text(
-        start[1] + 0.5,
+        start[1] + 0.5 + shift,
         start[0] + 0.94,
-        "start",
+        text,
         ha="center",
         va="bottom",
         fontsize=font * 0.85,
@@ -212,15 +223,7 @@ def _legend(axes: Axes, layout: Layout, trajectories: list[Trajectory], colours:
         outcome = "success" if t.success else "failure"
         label = f"#{i + 1} {outcome}: {t.verdict}, {t.length} steps"
         handles.append(Line2D([], [], color=colour, marker="o", markersize=5, label=label))
-    kinds = set(layout.sides.values())
-    features = [("wall", WALL, 4.0), ("door", DOOR, 3.0), ("window", WINDOW, 4.0)]
-    handles += [
-        Line2D([], [], color=colour, linewidth=width, label=kind)
-        for kind, colour, width in features
-        if kind == "wall" or kind in kinds
-    ]
-    if layout.blocked:
-        handles.append(Patch(facecolor="black", label="blocked"))
+    handles += _map_handles(layout)
     handles.append(
         Line2D(
             [],
@@ -245,6 +248,20 @@ def _legend(axes: Axes, layout: Layout, trajectories: list[Trajectory], colours:
     )
 
 
+def _map_handles(layout: Layout) -> list[Any]:
+    """Legend entries for the kinds of sides and cells this grid has."""
+    kinds = set(layout.sides.values())
+    features = [("wall", WALL, 4.0), ("door", DOOR, 3.0), ("window", WINDOW, 4.0)]
+    handles: list[Any] = [
+        Line2D([], [], color=colour, linewidth=width, label=kind)
+        for kind, colour, width in features
+        if kind == "wall" or kind in kinds
+    ]
+    if layout.blocked:
+        handles.append(Patch(facecolor="black", label="blocked"))
+    return handles
+
+
 def trajectory_figure(setting: Setting, trajectories: list[Trajectory], title: str) -> Figure:
     """The world's grid with ``trajectories`` drawn over it."""
     drawing = setting.world.drawing
@@ -255,7 +272,8 @@ def trajectory_figure(setting: Setting, trajectories: list[Trajectory], title: s
     axes = figure.add_axes((0.03, 0.04, 0.6, 0.8))
     cell_points = 0.8 * GRID_SIZE[1] * 72 / max(layout.rows, layout.cols)
     font = float(np.clip(cell_points * 0.17, 6, 13))
-    _draw_cells(axes, layout, dict(drawing.labels), drawing.starts[0], font)
+    _draw_cells(axes, layout, dict(drawing.labels), font)
+    _draw_start(axes, drawing.starts[0], font)
     _draw_sides(axes, layout, width=float(np.clip(cell_points * 0.05, 2, 5)))
     colours = _colours(trajectories)
     spacing = min(0.07, 0.5 / max(len(trajectories), 1))
