@@ -391,7 +391,9 @@ def test_the_size_limit_is_an_error_at_robots(tmp_path: Path) -> None:
 def test_the_shipped_team_world_loads(capsys: pytest.CaptureFixture[str]) -> None:
     world = load_team_world(ROOT / "specs" / "teams" / "two-robots.yaml")
     assert world.team is not None and world.team.robots == ("robot_0", "robot_1")
-    assert world.cells[world.start] == (0, 0, 4, 4) and world.is_pomdp
+    assert world.cells[world.start] == (0, 0, 4, 4) and not world.is_pomdp
+    noisy = load_team_world(ROOT / "specs" / "teams" / "two-robots-noisy.yaml")
+    assert noisy.is_pomdp and noisy.name == "two-robots-noisy"
     assert "collide" in world.propositions and world.horizon == 30
     assert capsys.readouterr() == ("", "")
 
@@ -433,7 +435,8 @@ def test_team_grid_env_steps_by_the_joint_world(tmp_path: Path) -> None:
     world = row_world(tmp_path, 3, [0, 2], block=False)
     env = TeamGridEnv(world)
     obs, infos = env.reset(seed=3)
-    assert obs == {"r0": 0, "r1": 2} and infos["r0"] == {"cell": [0, 0], "collide": False}
+    assert obs == {"r0": 0, "r1": 2}
+    assert infos["r0"] == {"cell": [0, 0], "collide": False, "state": world.start}
     obs, _, _, _, infos = env.step({"r0": 3, "r1": 4})  # right, stay
     assert obs == {"r0": 1, "r1": 2} and not infos["r1"]["collide"]
     obs, _, _, _, infos = env.step({"r0": 3, "r1": 2})  # right, left: a swap

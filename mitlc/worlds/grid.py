@@ -222,7 +222,8 @@ def move(
     steps: Mapping[str, Cell | None] | None = None,
 ) -> dict[Cell, float]:
     """The distribution of the next cell. With ``sideways``, each perpendicular way w.p.
-    ``sideways``; with ``spread``, that mass split evenly over the other feasible directions.
+    ``sideways``; with ``spread``, that mass split evenly over the other feasible directions;
+    with ``stall``, in place w.p. ``stall``.
     Infeasible outcomes leave the robot in place; ``stay`` is certain. ``steps`` may give
     ``layout.step(cell, d)`` for every direction ``d``, computed once for all actions."""
     heading = HEADING.get(action)
@@ -231,7 +232,9 @@ def move(
     if steps is None:
         steps = {d: layout.step(cell, d) for d in DIRECTIONS}
     outcomes: list[tuple[Cell | None, float]] = [(steps[heading], motion.intended)]
-    if motion.sideways is not None:
+    if motion.stall is not None:
+        outcomes.append((None, motion.stall))
+    elif motion.sideways is not None:
         outcomes += [(steps[d], motion.sideways) for d in PERPENDICULAR[heading]]
     else:
         spread = motion.spread or 0.0

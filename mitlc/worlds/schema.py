@@ -165,7 +165,8 @@ class Grid(_Model):
 
 
 class Motion(_Model):
-    """Where a move takes the robot. Give exactly one of ``sideways`` and ``spread``."""
+    """Where a move takes the robot. Give exactly one of ``sideways``, ``spread`` and
+    ``stall``."""
 
     intended: Probability = Field(description="The probability of moving the intended way.")
     sideways: Probability | None = Field(
@@ -179,16 +180,26 @@ class Motion(_Model):
         "(not off the grid, not blocked, not through a wall or window); with none feasible, it "
         "stays in place (intended + spread = 1).",
     )
+    stall: Probability | None = Field(
+        default=None,
+        description="The probability of not moving at all, a wheel slip (intended + stall = 1): "
+        "two outcomes a move, so teams of robots stay small.",
+    )
 
     @model_validator(mode="after")
     def _one_model_summing_to_one(self) -> Motion:
-        if (self.sideways is None) == (self.spread is None):
+        given = [x for x in (self.sideways, self.spread, self.stall) if x is not None]
+        if len(given) != 1:
             raise PydanticCustomError(
-                "motion_kind", "give exactly one of 'sideways' and 'spread', with 'intended'"
+                "motion_kind",
+                "give exactly one of 'sideways', 'spread' and 'stall', with 'intended'",
             )
         if self.sideways is not None:
             total = self.intended + 2 * self.sideways
             how = f"intended {show(self.intended)} + 2 * sideways {show(self.sideways)}"
+        elif self.stall is not None:
+            total = self.intended + self.stall
+            how = f"intended {show(self.intended)} + stall {show(self.stall)}"
         else:
             assert self.spread is not None
             total = self.intended + self.spread
