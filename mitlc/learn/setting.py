@@ -94,6 +94,10 @@ def prepare(
     if world is None:
         world = open_world(world_path, spec)
     automaton = translate(parse(world.spec, world.spec_source), deadline=clock)
+    learned_by = getattr(world, "learned_by", None)  # a world only some learners learn
+    if learned_by is not None and config.algo not in learned_by:
+        raise ConfigError(f"{world_path}: --algo {config.algo} does not learn this world; use "
+                          f"{' or '.join(learned_by)}")  # fmt: skip
     if not is_finite(world):
         if getattr(world, "costs", None) is not None:
             raise ConfigError(
@@ -252,6 +256,11 @@ def batches(setting: Setting, seed: int) -> Batches:
 
         return product_batch
     base = int(np.random.SeedSequence(seed).generate_state(1, np.uint64)[0] >> np.uint64(1))
+    if getattr(setting.world, "kind", None) == "pettingzoo":  # whole team episodes
+        from mitlc.learn.backends.sb3_team import team_batches
+
+        made: Batches = team_batches(setting, base)
+        return made
 
     def open_batch(count: int, first: int) -> VectorTask:
         vector: VectorTask = task_vector_of(setting, count, base + first)

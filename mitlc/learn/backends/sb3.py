@@ -69,6 +69,7 @@ from mitlc.learn.backends.sb3_offpolicy import (
     offpolicy_settings,
 )
 from mitlc.learn.backends.sb3_replay import ReplayState
+from mitlc.learn.backends.sb3_team import check_team, is_team, team_venv, team_view
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.device import resolve_device
 from mitlc.learn.held import run_never_held
@@ -274,7 +275,10 @@ def train(
     if notes is not None:
         for note in setting_notes(setting):
             notes(note)
-    needs_box(config.algo, lambda: wrapped_env(setting), setting.world_path)
+    if is_team(setting.world):  # a PettingZoo team: mitlc.learn.backends.sb3_team
+        check_team(setting)
+    else:
+        needs_box(config.algo, lambda: wrapped_env(setting), setting.world_path)
     with opened_run(directory, setting, resume, sb3=True):
         return _train(directory, setting, device, resume, progress, should_stop, notes)
 
@@ -293,12 +297,16 @@ def _train(
 
     config, s = setting.config, setting.config.sb3
     configure_torch()
-    venv = make_vec_env(
-        lambda: wrapped_env(setting), s.num_envs, seed=config.seed, vec_env_cls=DummyVecEnv
-    )
+    team = is_team(setting.world)  # a PettingZoo team: a slot per agent, one shared policy
+    if team:
+        venv = team_venv(setting, s.num_envs)
+    else:
+        venv = make_vec_env(
+            lambda: wrapped_env(setting), s.num_envs, seed=config.seed, vec_env_cls=DummyVecEnv
+        )
     cls, policy = algorithm(config.algo)
-    assert isinstance(venv, DummyVecEnv)
-    given = model_settings(config, venv.envs[0])
+    assert team or isinstance(venv, DummyVecEnv)
+    given = model_settings(config, venv if team else venv.envs[0])
     try:
         model = cls(policy, venv, seed=config.seed, device=device, verbose=0, **given)
     except (ValueError, TypeError, AssertionError, MemoryError) as err:
@@ -326,6 +334,7 @@ def _train(
         (directory / SUMMARY).unlink(missing_ok=True)
     save_config(directory, setting)
     run = _Run(directory, config, state, tally, progress, should_stop)
+    run.view = team_view(venv.n) if team else None
     try:
         with (directory / METRICS).open("a", encoding="utf-8") as run.metrics:
             model.learn(s.steps - tally.steps, callback=run.callback(), reset_num_timesteps=False)
@@ -362,6 +371,8 @@ class _Run:
         """Per env: whether its episode took an action the shield blocks."""
         self.paid: list[float] = []
         """Per env: what its episode has cost so far."""
+        self.view: Callable[[Any, Any], tuple[Any, Any]] | None = None
+        """What the callback reads of a vector step (a team's first slot: :func:`team_view`)."""
 
     def epsilon(self) -> float:
         """DQN's exploration rate (0 for the others, which explore by sampling or noise)."""
@@ -424,6 +435,9 @@ class _Run:
 
         class Callback(BaseCallback):
             def _on_step(self) -> bool:
-                return run.on_step(self.num_timesteps, self.locals["dones"], self.locals["infos"])
+                dones, infos = self.locals["dones"], self.locals["infos"]
+                if run.view is not None:
+                    dones, infos = run.view(dones, infos)
+                return run.on_step(self.num_timesteps, dones, infos)
 
         return Callback()

@@ -23,6 +23,7 @@ import torch
 from gymnasium import spaces
 
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
+from mitlc.learn.backends.sb3_team import TeamLearner, is_team, load_team_learner
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Learner, Policy
 from mitlc.learn.learners.encoder import Encoder, task_features
@@ -165,9 +166,11 @@ class SB3Learner(Learner):
         return SB3Policy(self.net, self.encoder, self.setting)
 
 
-def load_learner(directory: Path, setting: Setting) -> SB3Learner:
+def load_learner(directory: Path, setting: Setting) -> SB3Learner | TeamLearner:
     """The policy of the sb3 run in ``directory`` (its latest checkpoint), rebuilt from the
     settings without its algorithm, optimiser or replay memory."""
+    if is_team(setting.world):  # a PettingZoo team's shared policy
+        return load_team_learner(directory, setting)
     configure_torch()
     cls, name = algorithm(setting.config.algo)
     env = wrapped_env(setting)

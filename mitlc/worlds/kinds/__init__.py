@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mitlc.worlds.kinds import env, grid, plane, team
+from mitlc.worlds.kinds import env, grid, pettingzoo, plane, team
 
 if TYPE_CHECKING:
     from mitlc.worlds.door import Declaration
@@ -31,6 +31,7 @@ class Kind:
 
 KINDS: tuple[Kind, ...] = (
     Kind("plane", plane.claims, plane.PlaneDeclaration.read),
+    Kind("pettingzoo", pettingzoo.claims, pettingzoo.PettingZooDeclaration.read),
     Kind("env", env.claims, env.EnvDeclaration.read),
     Kind("team", team.claims, team.TeamDeclaration.read),
     Kind("grid", grid.claims, grid.GridDeclaration.read),
