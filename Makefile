@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-shield bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-envs bench-sweep lint golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-shield bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-envs bench-sweep bench-teams lint golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -103,6 +103,13 @@ bench-envs: $(STAMP)
 # this machine, and on a two-node Ray cluster started here (about 20 minutes).
 bench-sweep: $(STAMP)
 	$(BIN)/python bench/sweep_bench.py
+
+# Teams of robots (issue 43): the exact joint optimum of two robots beside Storm on the same
+# product, tabular learners beside it, and three robots in a warehouse (exact optimum in a child
+# process with its peak memory; independent learners under the per-robot shield). About 10
+# minutes and 8 GB on this machine (docs/teams.md).
+bench-teams: $(STAMP)
+	$(BIN)/python bench/teams_bench.py --out build/bench-teams
 
 # Rewrite golden files from the current output; read `git diff tests/golden` before committing.
 golden: $(STAMP)

@@ -248,8 +248,8 @@ def schema_command(
     kind: Annotated[
         str,
         typer.Argument(
-            help="Which schema: 'world' (a grid), 'env-world' (a gymnasium env) or "
-            "'plane-world' (a continuous room)."
+            help="Which schema: 'world' (a grid), 'env-world' (a gymnasium env), "
+            "'plane-world' (a continuous room) or 'team-world' (robots on a grid)."
         ),
     ] = "world",
 ) -> None:

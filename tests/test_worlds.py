@@ -352,3 +352,16 @@ def test_json_schemas_of_env_and_plane_worlds_accept_the_shipped_ones(
         assert schema_errors(data, schema, schema) == [], path
     bad = {**yaml.safe_load(files[0].read_text(encoding="utf-8")), "horizon": "soon"}
     assert schema_errors(bad, schema, schema) != []
+
+
+def test_the_json_schema_of_team_worlds_accepts_the_shipped_ones() -> None:
+    schema = world_json_schema("team-world")
+    assert schema["additionalProperties"] is False and "robots" in schema["required"]
+    teams = sorted((ROOT / "specs" / "teams").glob("*.yaml"))
+    files = [p for p in teams if "robots" in yaml.safe_load(p.read_text(encoding="utf-8"))]
+    assert len(files) >= 3
+    for path in files:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        assert schema_errors(data, schema, schema) == [], path
+    bad = {**yaml.safe_load(files[0].read_text(encoding="utf-8")), "start": [0, 0]}
+    assert schema_errors(bad, schema, schema) != []

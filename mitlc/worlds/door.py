@@ -128,6 +128,7 @@ _KIND_NAMES = {
     "env": ("a gymnasium env world", "env"),
     "plane": ("a continuous world", "plane"),
     "team": ("a team world", "robots"),
+    "pettingzoo": ("a PettingZoo env world", "pettingzoo"),
 }
 
 

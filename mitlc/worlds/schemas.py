@@ -1,4 +1,4 @@
-"""The JSON schemas of the three kinds of world file, for editors and other tools."""
+"""The JSON schemas of the kinds of world file, for editors and other tools."""
 
 from __future__ import annotations
 
@@ -8,16 +8,18 @@ from pydantic import BaseModel
 
 from mitlc.worlds.plane_schema import PlaneWorldFile
 from mitlc.worlds.schema import EnvWorldFile, WorldFile
+from mitlc.worlds.team_schema import TeamWorldFile
 
 
 def world_json_schema(kind: str = "world") -> dict[str, Any]:
     """The JSON schema (draft 2020-12) of a grid world file (``world``), a gymnasium env world
-    file (``env-world``) or a continuous world file (``plane-world``), for editors and other
-    tools; a ``KeyError`` for another kind."""
+    file (``env-world``), a continuous world file (``plane-world``) or a team of robots on a
+    grid (``team-world``), for editors and other tools; a ``KeyError`` for another kind."""
     models: dict[str, type[BaseModel]] = {
         "world": WorldFile,
         "env-world": EnvWorldFile,
         "plane-world": PlaneWorldFile,
+        "team-world": TeamWorldFile,
     }
     model = models[kind]
     schema = model.model_json_schema()
@@ -29,5 +31,5 @@ def world_json_schema(kind: str = "world") -> dict[str, Any]:
     return schema
 
 
-SCHEMA_KINDS = ("world", "env-world", "plane-world")
+SCHEMA_KINDS = ("world", "env-world", "plane-world", "team-world")
 """The kinds of :func:`world_json_schema`."""
