@@ -19,7 +19,9 @@ Rows (each measured in this run; every figure printed is one this script compute
   per-robot shield with theta = 1 (its exact success, and the preventable violations and
   blocked actions of its training).
 
-Results go to ``OUT/results.json`` and a table on stdout.
+Results go to ``OUT/results.json`` and a table on stdout. A learning run finished in an earlier
+sitting (its ``summary.json`` in ``OUT/runs``) is evaluated again, not trained again: delete
+``OUT/runs`` for fresh runs.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def exact_two_robots(world_path: Path) -> dict[str, Any]:
         model = stormpy.build_model_from_drn(str(drn))
         prop = stormpy.parse_properties(storm_property(product))[0]
         result = stormpy.model_checking(model, prop)
-        storm = float(result.at(model.initial_states[0]))
+        storm = float(result.get_value_vector()[model.initial_states[0]])
         storm_done = time.perf_counter()
     return {
         "product_states": product.num_states,
@@ -93,13 +95,19 @@ def learn(world_path: Path, out: Path, overrides: dict[str, Any]) -> dict[str, A
 
     world = open_world(world_path)
     config, _ = config_for(world, overrides)
-    result = train(world_path, config, out, world=world)
+    if (out / "summary.json").is_file():  # finished in an earlier sitting: evaluated again
+        seconds = json.loads((out / "summary.json").read_text())["seconds"]
+        episodes = json.loads((out / "summary.json").read_text())["episodes"]
+    else:
+        _fresh(out)
+        result = train(world_path, config, out, world=world)
+        seconds, episodes = result.seconds, result.episodes
     evaluation = evaluate(out, episodes=10_000)
     rows = [json.loads(x) for x in (out / "metrics.jsonl").read_text().splitlines()]
     learned = evaluation.exact if evaluation.exact is not None else evaluation.success_rate
     return {
-        "episodes": result.episodes,
-        "seconds_train": result.seconds,
+        "episodes": episodes,
+        "seconds_train": seconds,
         "exact": evaluation.exact,
         "monte_carlo": evaluation.success_rate,
         "optimum": evaluation.optimum,
@@ -120,7 +128,7 @@ from mitlc.worlds.door import load_world
 started = time.perf_counter()
 world = load_world(sys.argv[1])
 automaton = translate(parse(world.spec))
-product = build_product(world, automaton, max_product_states=None)
+product = build_product(world, automaton, max_product_states=None, time_limit=None)
 value, _ = pmax_horizon(product, world.horizon)
 print(json.dumps({"pmax_horizon": float(value), "seconds_exact": time.perf_counter() - started,
                   "product_states": product.num_states, "product_choices": product.num_choices,
@@ -133,9 +141,10 @@ print(json.dumps({"pmax_horizon": float(value), "seconds_exact": time.perf_count
 def exact_in_child(world_path: Path) -> dict[str, Any]:
     """The exact optimum in a fresh process: its figures, seconds and peak memory."""
     done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(world_path)],
-        check=True, capture_output=True, text=True, cwd=ROOT,
-    )  # fmt: skip
+        [sys.executable, "-c", CHILD, str(world_path)], capture_output=True, text=True, cwd=ROOT
+    )
+    if done.returncode:
+        raise RuntimeError(f"the exact check of {world_path} failed:\n{done.stderr}")
     found: dict[str, Any] = json.loads(done.stdout.strip().splitlines()[-1])
     return found
 
@@ -154,16 +163,13 @@ def main() -> None:
     budget = {"episodes": args.episodes, "seed": 0}
     for name, extra in (("independent", {"team": "independent"}), ("joint", {"team": "joint"})):
         where = runs / f"two-robots-{name}"
-        _fresh(where)
         results[f"two_robots_{name}_q"] = learn(two, where, {**budget, **extra})
     noisy = runs / "two-robots-noisy-independent"
-    _fresh(noisy)
     results["two_robots_noisy_independent_q"] = learn(
         TEAMS / "two-robots-noisy.yaml", noisy, {**budget, "team": "independent", "algo": "q"}
     )
     results["warehouse_exact"] = exact_in_child(TEAMS / "warehouse.yaml")
     shielded = runs / "warehouse-independent-shield"
-    _fresh(shielded)
     results["warehouse_independent_q_shield"] = learn(
         TEAMS / "warehouse.yaml", shielded, {**budget, "team": "independent", "shield": 1.0}
     )
