@@ -404,7 +404,7 @@ def eval_command(
 def plot_command(
     run: RunArg,
     out: Annotated[
-        Path | None, typer.Option("--out", help="Where to write the PNGs (default: RUN).")
+        Path | None, typer.Option("--out", help="Where to write the figures (default: RUN).")
     ] = None,
     trajectories: Annotated[
         int, typer.Option("--trajectories", help="Greedy trajectories to draw.")
@@ -418,7 +418,8 @@ def plot_command(
     ] = DEFAULT_TIME_LIMIT,
     trust_world: TrustWorldOpt = False,
 ) -> None:
-    """Draw a run: learning curve, trajectories on the grid, the automaton (PNG)."""
+    """Draw a run: learning curve, trajectories on the map, the automaton (PNG); for a team,
+    every robot's path in its colour and an animated greedy episode (GIF)."""
     from mitlc.learn.bounds import check_option
 
     check_option("plot", "--trajectories", trajectories)  # before matplotlib is imported

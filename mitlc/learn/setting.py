@@ -211,12 +211,25 @@ SMALL_NETWORKS_ON_CUDA = (
 
 def setting_notes(setting: Setting) -> list[str]:
     """One-line notes on a run's setting: a horizon shorter than the task needs to be decided
-    (:func:`mitlc.task.horizon.short_horizon_note`); a network that ``--device auto`` puts on
-    CUDA (:data:`SMALL_NETWORKS_ON_CUDA`)."""
+    (:func:`mitlc.task.horizon.short_horizon_note`); the guarantee of its shield; a network that
+    ``--device auto`` puts on CUDA (:data:`SMALL_NETWORKS_ON_CUDA`)."""
     world = setting.world
     note = short_horizon_note(parse(world.spec, world.spec_source), world.horizon)
     notes = [] if note is None else [note]
     config = setting.config
+    shield = setting.shield_summary
+    if shield is not None:
+        robots = (
+            " per robot (every combination of the robots' own choices)"
+            if (getattr(world, "team", None) is not None and config.team != "joint")
+            else ""
+        )
+        notes.append(
+            f"note: shield (theta {shield['theta']}, delta {shield['delta']}){robots}: every "
+            f"policy it allows succeeds within the horizon with at least "
+            f"{shield['guaranteed_success']:.6f} (the optimum: {shield['optimum']:.6f}) and "
+            f"violates with at most {shield['guaranteed_violation']:.6f}"
+        )
     if config.algo != "q" and config.device == "auto":
         from mitlc.learn.device import DeviceError, resolve_device
 
