@@ -151,3 +151,17 @@ def test_decentralised_settings_that_cannot_learn_are_clear_errors(
                                  "--episodes", "10", "--quiet"])  # fmt: skip
     assert result.exit_code == 1
     assert message in result.output and "Traceback" not in result.output
+
+
+def test_the_shipped_team_world_under_its_task_keeps_pettingzoos_conventions() -> None:
+    from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+    from mitlc.worlds.door import load_world
+
+    world = load_world(ROOT / "specs" / "teams" / "two-robots.yaml")
+    env = team_task(world)
+    parallel_api_test(env, num_cycles=40)
+    parallel_seed_test(lambda: team_task(world), num_cycles=40)
+    assert env.observation_space("robot_0") is env.observation_space("robot_0")
+    _, infos = env.reset(seed=0)
+    assert infos["robot_0"]["team_verdict"] == "pending" and not infos["robot_0"]["is_success"]
