@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds.model import Observations, Sparse
@@ -118,16 +119,45 @@ MAX_CELLS = MAX_GRID_CELLS
 def check(world: WorldFile) -> tuple[Layout, Found]:
     """The layout of a world file, and what is wrong with its cells and sides: each problem as
     (the field's path, a message)."""
+    checker, too_large = checked_layout(world)
+    if too_large is not None:
+        return checker.bare, too_large
+    checker.cell(("start",), world.start)
+    return checker.layout(), checker.found
+
+
+class GridFile(Protocol):
+    """What :func:`checked_layout` reads of a grid or team world file."""
+
+    @property
+    def grid(self) -> Any: ...
+    @property
+    def blocked(self) -> Sequence[Cell]: ...
+    @property
+    def labels(self) -> Mapping[str, Sequence[Cell]]: ...
+    @property
+    def actions(self) -> Sequence[str]: ...
+    @property
+    def walls(self) -> Sequence[Any]: ...
+    @property
+    def doors(self) -> Sequence[Any]: ...
+    @property
+    def windows(self) -> Sequence[Any]: ...
+
+
+def checked_layout(world: GridFile) -> tuple[_Checker, Found | None]:
+    """The checks every file on a grid shares (its size, blocked cells, labels' cells, actions
+    and sides), in a checker that goes on collecting problems; the problem of a grid too large
+    to check, which stops them."""
     rows, cols = world.grid.rows, world.grid.cols
     checker = _Checker(Layout(rows, cols, frozenset(world.blocked), {}))
     if rows * cols > MAX_CELLS:
-        return checker.bare, [
+        return checker, [
             (("grid",), f"a {rows}x{cols} grid is too large (at most {MAX_CELLS:,} cells)")
         ]
     for i, cell in enumerate(world.blocked):
         checker.cell(("blocked", i), cell, free=False)
     checker.once(("blocked",), "cell", world.blocked)
-    checker.cell(("start",), world.start)
     for name, cells in world.labels.items():
         for i, cell in enumerate(cells):
             checker.cell(("labels", name, i), cell)
@@ -136,7 +166,7 @@ def check(world: WorldFile) -> tuple[Layout, Found]:
     for kind, items in (("wall", world.walls), ("door", world.doors), ("window", world.windows)):
         for i, (first, second) in enumerate(items):
             checker.side((f"{kind}s", i), kind, first, second)
-    return Layout(rows, cols, checker.bare.blocked, checker.sides), checker.found
+    return checker, None
 
 
 class _Checker:
@@ -147,6 +177,10 @@ class _Checker:
         self.found: Found = []
         self.sides: dict[SideKey, str] = {}
         self.declared: dict[SideKey, FieldPath] = {}
+
+    def layout(self) -> Layout:
+        """The grid with the sides declared so far."""
+        return Layout(self.bare.rows, self.bare.cols, self.bare.blocked, self.sides)
 
     def cell(self, path: FieldPath, cell: Cell, free: bool = True) -> bool:
         """Whether ``cell`` is inside the grid (and free, if ``free``); a problem if not."""

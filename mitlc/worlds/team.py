@@ -56,7 +56,7 @@ import numpy as np
 
 from mitlc.errors import MitlcError
 from mitlc.limits import MAX_TEAM_TRANSITIONS
-from mitlc.worlds.grid import MAX_CELLS, FieldPath, Found, GridMap, Layout, _Checker, render
+from mitlc.worlds.grid import FieldPath, Found, GridMap, Layout, checked_layout, render
 from mitlc.worlds.model import BoolArray, IntArray, World
 from mitlc.worlds.schema import show
 from mitlc.worlds.team_model import Team, radix_parts
@@ -97,23 +97,9 @@ class Meaning:
 def check_team(world: TeamWorldFile) -> tuple[Layout, Found]:
     """The layout of a team file, and what is wrong with its cells, sides, starts and
     proposition names: each problem as (the field's path, a message)."""
-    rows, cols = world.grid.rows, world.grid.cols
-    checker = _Checker(Layout(rows, cols, frozenset(world.blocked), {}))
-    if rows * cols > MAX_CELLS:
-        return checker.bare, [
-            (("grid",), f"a {rows}x{cols} grid is too large (at most {MAX_CELLS:,} cells)")
-        ]
-    for i, cell in enumerate(world.blocked):
-        checker.cell(("blocked", i), cell, free=False)
-    checker.once(("blocked",), "cell", world.blocked)
-    for label, cells in world.labels.items():
-        for i, cell in enumerate(cells):
-            checker.cell(("labels", label, i), cell)
-        checker.once(("labels", label), "cell", cells)
-    checker.once(("actions",), "action", world.actions)
-    for kind, items in (("wall", world.walls), ("door", world.doors), ("window", world.windows)):
-        for i, (first, second) in enumerate(items):
-            checker.side((f"{kind}s", i), kind, first, second)
+    checker, too_large = checked_layout(world)
+    if too_large is not None:
+        return checker.bare, too_large
     starts: dict[tuple[int, int], str] = {}
     for rid, robot in world.robots.items():
         at: FieldPath = ("robots", rid)
@@ -132,7 +118,7 @@ def check_team(world: TeamWorldFile) -> tuple[Layout, Found]:
         if robot.actions is not None:
             checker.once((*at, "actions"), "action", robot.actions)
     _, clashes = meanings(world)
-    return Layout(rows, cols, checker.bare.blocked, checker.sides), checker.found + clashes
+    return checker.layout(), checker.found + clashes
 
 
 def meanings(world: TeamWorldFile) -> tuple[dict[str, Meaning], Found]:
