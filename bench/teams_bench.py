@@ -120,20 +120,21 @@ def learn(world_path: Path, out: Path, overrides: dict[str, Any]) -> dict[str, A
 
 CHILD = """
 import json, resource, sys, time
-from mitlc.automata import translate
+from mitlc.automata import LazyAutomaton
 from mitlc.check.solve import pmax_horizon
 from mitlc.product.explicit import build_product
 from mitlc.syntax import parse
 from mitlc.worlds.door import load_world
 started = time.perf_counter()
 world = load_world(sys.argv[1])
-automaton = translate(parse(world.spec))
-product = build_product(world, automaton, max_product_states=None, time_limit=None)
+automaton = LazyAutomaton(parse(world.spec))  # as mitlc check: the states the world reaches
+product = build_product(world, automaton, max_product_states=None, time_limit=None,
+                        memory_limit=16.0)
 value, _ = pmax_horizon(product, world.horizon)
 print(json.dumps({"pmax_horizon": float(value), "seconds_exact": time.perf_counter() - started,
                   "product_states": product.num_states, "product_choices": product.num_choices,
                   "joint_states": world.num_states, "robots": world.team.num_robots,
-                  "free_cells": len(world.team.cells), "automaton_states": len(automaton.states),
+                  "free_cells": len(world.team.cells), "automaton_states": automaton.num_states,
                   "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))
 """
 
