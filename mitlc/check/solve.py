@@ -306,13 +306,13 @@ def pmax_horizon(
     ptr = product.choice_ptr
     sources = choice_sources(product)
     jumps = np.flatnonzero(product.action < 0)
-    into_ptr, into_indices = into_choices(product)
+    preds_ptr, preds = _predecessors(product, sources)
     jump_sources = sources[jumps]
     jump_targets = t.targets[t.indptr[jumps]]
     fixed = np.unique(np.concatenate([jump_sources, [SATISFIED, VIOLATED]]))
     table = raw.copy()  # no step left: the episode is over, so no jump is taken either
     history = [table.copy()]
-    slot = np.zeros(n, dtype=np.int64)
+    seen = np.zeros(n, dtype=np.bool_)
     dirty = np.arange(n)
     for step in range(horizon):
         clock.check_now()
@@ -330,12 +330,12 @@ def pmax_horizon(
             for mask, matrix in enumerate(matrices):
                 q_values = np.where(world, matrix[choices] @ flat, -1.0)
                 raw[mask, dirty] = np.maximum.reduceat(q_values, starts)
-        columns = _distinct(np.concatenate([dirty, fixed]), slot)
+        columns = _distinct(np.concatenate([dirty, fixed]), seen)
         before = table[:, columns]
         table[:, columns] = raw[:, columns]
         _settle(table, jump_sources, jump_targets)
         changed = columns[(table[:, columns] != before).any(axis=0)]
-        dirty = _distinct(sources[gather(into_ptr, into_indices, changed)], slot)
+        dirty = _distinct(gather(preds_ptr, preds, changed), seen)
         if keep_history:
             history.append(table.copy())
         if not len(changed):  # a fixpoint: every later step gives this table again
@@ -386,11 +386,30 @@ def _ends(product: Product) -> FloatArray:
     return recursion_ends(product)
 
 
-def _distinct(keys: IntArray, slot: IntArray) -> IntArray:
-    """``keys`` without repeats, in no particular order (``slot``: scratch, one per key)."""
-    index = np.arange(len(keys))
-    slot[keys] = index
-    distinct: IntArray = keys[slot[keys] == index]
+def _predecessors(product: Product, sources: IntArray) -> tuple[IntArray, IntArray]:
+    """``(ptr, before)``: the states with a choice that may reach ``y`` are
+    ``before[ptr[y]:ptr[y+1]]``, each once. A state's entries in
+    :func:`mitlc.check.topo.into_choices` come in increasing choice order, so a predecessor's
+    repeats are adjacent and dropped in one pass (a repeat left would only cost time)."""
+    into_ptr, into = into_choices(product)
+    into = sources[into]
+    keep = np.ones(len(into), dtype=np.bool_)
+    np.not_equal(into[1:], into[:-1], out=keep[1:])
+    keep[into_ptr[:-1][np.diff(into_ptr) > 0]] = True
+    kept = np.zeros(len(into) + 1, dtype=np.int64)
+    np.cumsum(keep, out=kept[1:])
+    before: IntArray = into[keep]
+    return kept[into_ptr], before
+
+
+def _distinct(keys: IntArray, seen: BoolArray) -> IntArray:
+    """``keys`` without repeats, in increasing order (``seen``: scratch, a flag per key, all
+    off before and after): a byte written per key and one pass over the flags, no sort. The
+    order of the states a step recomputes changes none of their values (each is its own
+    choices' rows)."""
+    seen[keys] = True
+    distinct: IntArray = np.flatnonzero(seen)
+    seen[distinct] = False
     return distinct
 
 

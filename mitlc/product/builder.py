@@ -2,19 +2,36 @@
 
 The product is written straight into compact arrays, level by level of the breadth-first
 search: the states a level discovers get consecutive ids, and every choice of a state is made
-while its level is expanded, so each level's choices are sorted (by state, then action, jumps
-last) and its transitions merged (duplicate targets summed, targets increasing within a choice)
-on their own, and appended to the product's arrays. Those arrays grow in place
-(:class:`Column`: ``realloc``, which the C library does by remapping pages for large blocks,
-so a growing array is never held twice), with 32-bit indices wherever they fit: the product's
-memory is about 12 bytes a transition (a 32-bit target and a 64-bit probability, kept exact),
-and the build's own is one level's worth beside it. Pairs ``(s, q)`` are coded ``q * S + s``
-and numbered through an index array over the codes seen (its bound ``S * Q``, 4 bytes a pair:
-the bound of the product's states, a fraction of the product's own bytes).
+while its level is expanded, so each level's choices and transitions are appended to the
+product's arrays on their own. Those arrays grow in place (:class:`Column`: ``realloc``, which
+the C library does by remapping pages for large blocks, so a growing array is never held
+twice), with 32-bit indices wherever they fit: the product's memory is about 12 bytes a
+transition (a 32-bit target and a 64-bit probability, kept exact), and the build's own is one
+level's worth beside it. Pairs ``(s, q)`` are coded ``q * S + s`` and numbered through a dense
+index array over the codes seen (its bound ``S * Q``, 4 bytes a pair: the bound of the
+product's states, a fraction of the product's own bytes).
+
+A level costs no sort over all its transitions:
+
+* the product order of choices (by state, then action, jumps last) is known beforehand, so
+  every transition is written straight to its place in the product's arrays
+  (:class:`Layout`, :meth:`Column.room`): a level makes no array of its transitions of its
+  own, and the scratch it does make is one action's worth (memory touched for the first
+  time costs more than the arithmetic on it; scratch that small is reused);
+* new states are numbered in order of first appearance through the dense index array itself
+  (:meth:`Builder.intern`: each fresh code's entry keeps the least position it occurs at,
+  ``np.minimum.at``), with no ``np.unique``;
+* within a choice the targets are put in increasing order and repeated ones summed
+  (:func:`merge_rows`) only where a choice's targets are not already increasing, by a stable
+  sort of ``(choice, target)`` keys that are already ordered by choice (Timsort's runs, as
+  numpy's ``kind="stable"`` sorts them), a block of choices at a time. A repeated target's
+  probabilities are summed in the order the world lists them, as a whole-product merge sums
+  them, so every array is the same, bit for bit, as a merge of the whole product would give.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -39,31 +56,59 @@ BYTES_PER_CHOICE = 12
 BYTES_PER_STATE = 13
 """A state's bytes in the product (32-bit pointer, world and automaton state, end flag)."""
 
+Index = npt.NDArray[np.integer[Any]]
+"""Integers of 32 or 64 bits (ids, targets, counts)."""
+
+MERGE_BLOCK = 1 << 21
+"""Transitions per block of :func:`merge_rows` (its scratch is about 40 bytes a transition)."""
+
 
 class Column:
-    """A one-dimensional array that grows in place by doubling (``ndarray.resize``), so that
-    appending costs amortised constant time and a large array is never copied whole."""
+    """A one-dimensional array that grows in place (``ndarray.resize``: ``realloc``, which the
+    C library does by remapping pages for large blocks, so a growing array is never copied
+    whole) by a quarter at least, so that appending costs amortised constant time and the
+    capacity past the values (which ``resize`` zeroes, so makes resident) is small.
+
+    A level writes its transitions straight into the room :meth:`room` makes (no array of
+    its own to append), and keeps them with :meth:`keep`."""
+
+    GROWTH = 1.25
 
     def __init__(self, dtype: npt.DTypeLike, deadline: Deadline | None = None) -> None:
         self.data = np.empty(1024, dtype=dtype)
         self.size = 0
         self.deadline = deadline
 
-    def append(self, values: npt.ArrayLike) -> None:
-        """Append ``values`` (cast to the column's type; a 32-bit column whose values pass
-        :data:`INDEX_LIMIT` becomes a 64-bit one first)."""
-        array = np.asarray(values)
-        end = self.size + len(array)
-        if self.data.dtype == np.int32 and len(array) and int(np.abs(array).max()) > INDEX_LIMIT:
-            self.data = self.data.astype(np.int64)
+    @property
+    def dtype(self) -> np.dtype[Any]:
+        """The column's type."""
+        return self.data.dtype
+
+    def room(self, count: int) -> npt.NDArray[Any]:
+        """The ``count`` entries after the values, made room for (a view: valid until the
+        column grows again; what is written there is kept by :meth:`keep`)."""
+        end = self.size + count
         if end > len(self.data):
-            capacity = max(end, 2 * len(self.data))
+            capacity = max(end, int(self.GROWTH * len(self.data)))
             if self.deadline is not None:
                 more = (capacity - len(self.data)) * self.data.itemsize
                 self.deadline.reserve(more, "the product's arrays")
             self.data.resize(capacity, refcheck=False)
-        self.data[self.size : end] = array
-        self.size = end
+        return self.data[self.size : end]
+
+    def keep(self, count: int) -> None:
+        """Count the next ``count`` entries (written through :meth:`room`) as values."""
+        self.size += count
+
+    def append(self, values: npt.ArrayLike) -> None:
+        """Append ``values`` (cast to the column's type; a 32-bit column whose values pass
+        :data:`INDEX_LIMIT` becomes a 64-bit one first)."""
+        array = np.asarray(values)
+        wide = self.data.dtype == np.int32 and array.dtype.itemsize > 4 and len(array) > 0
+        if wide and int(np.abs(array).max()) > INDEX_LIMIT:
+            self.data = self.data.astype(np.int64)
+        self.room(len(array))[:] = array
+        self.keep(len(array))
 
     def finish(self) -> npt.NDArray[Any]:
         """The array of the values appended (the column's buffer, trimmed in place)."""
@@ -71,11 +116,79 @@ class Column:
         return self.data
 
 
+def exclusive_sum(counts: Index) -> IntArray:
+    """``[0, c0, c0 + c1, ...]``: where each of ``counts``' blocks starts (one more entry
+    than ``counts``, the last the total)."""
+    starts = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=starts[1:])
+    return starts
+
+
+@dataclass(frozen=True, slots=True)
+class Layout:
+    """Where a level's choices and transitions go, in product order: state ``i``'s world
+    action ``a`` is choice ``first[i] + a``, its jump of rank ``r`` choice
+    ``first[i] + A + r``, and choice ``c``'s transitions start at ``edge_start[c]`` (both
+    with a last entry: the level's choices and transitions)."""
+
+    first: IntArray
+    edge_start: IntArray
+
+    @staticmethod
+    def of(lengths: Index, jump_counts: IntArray) -> Layout:
+        """The layout of states with ``lengths[i, a]`` transitions for world action ``a``
+        and ``jump_counts[i]`` jumps (one transition each)."""
+        actions = lengths.shape[1]
+        first = exclusive_sum(actions + jump_counts)
+        sizes: Index
+        if jump_counts.any():
+            sizes = np.ones(int(first[-1]), dtype=np.int64)
+            sizes[first[:-1, None] + np.arange(actions)] = lengths
+        else:
+            sizes = lengths.ravel()
+        return Layout(first, exclusive_sum(sizes))
+
+    def world_choices(self, a: int) -> IntArray:
+        """Every state's choice of world action ``a``."""
+        return self.first[:-1] + a
+
+
+def merge_rows(
+    starts: IntArray, targets: Index, probs: FloatArray, span: int
+) -> tuple[Index, FloatArray, Index]:
+    """Rows (row ``r``: ``starts[r] .. starts[r+1]-1``, targets below ``span``) with targets
+    put in increasing order and repeated targets merged, their probabilities summed in the
+    order given; ``(targets, probs, sizes)``. Rows whose targets already increase are left
+    as they are, and when every row's do, nothing is sorted or copied."""
+    sizes = np.diff(starts)
+    if not len(targets) or int(sizes.max()) <= 1:
+        return targets, probs, sizes
+    later = np.ones(len(targets), dtype=np.bool_)  # an entry that is not first in its row
+    later[starts[:-1][sizes > 0]] = False
+    later = later[1:]
+    if not (later & (targets[1:] <= targets[:-1])).any():
+        return targets, probs, sizes
+    row = np.repeat(np.arange(len(sizes), dtype=np.int64), sizes)
+    order = np.argsort(row * span + targets, kind="stable")  # runs by row already
+    targets, probs = targets[order], probs[order]
+    repeated = later & (targets[1:] == targets[:-1])
+    if not repeated.any():
+        return targets, probs, sizes
+    keep = np.concatenate([[True], ~repeated])
+    # Stable: a target's entries are summed in the order given, as ``np.bincount`` over the
+    # unsorted entries would sum them.
+    summed = np.bincount(np.cumsum(keep) - 1, weights=probs).astype(np.float64, copy=False)
+    sizes = sizes - np.bincount(row[1:][repeated], minlength=len(sizes))
+    return targets[keep], summed, sizes
+
+
 class Builder:
     """Breadth-first exploration, one frontier (all states of a level) at a time in numpy.
 
     A pair ``(s, q)`` is coded ``q * S + s``, so the table of ids grows with the automaton
-    states the monitor makes; the automaton's steps, verdicts and jumps are the monitor's."""
+    states the monitor makes; the automaton's steps, verdicts and jumps are the monitor's,
+    asked in the order a level's actions are taken (which matters for a lazy automaton, whose
+    states are numbered as they are first asked for)."""
 
     def __init__(
         self,
@@ -88,6 +201,7 @@ class Builder:
         self.world, self.monitor, self.deadline, self.limit = world, monitor, deadline, limit
         self.letters = letters
         self.num_s = world.num_states
+        self.row_lengths = np.diff(world.transitions.indptr).astype(np.int32)
         self.ids = np.full(0, -1, dtype=np.int32)
         self.codes = Column(np.int64)
         self.codes.append([-1, -1])
@@ -108,19 +222,26 @@ class Builder:
         """Whether ``grown`` states pass the limit."""
         return self.limit is not None and grown > self.limit
 
-    def intern(self, codes: IntArray) -> tuple[IntArray, IntArray]:
-        """Product ids of ``q * S + s`` codes (new ones numbered in order of first
-        appearance), and the new states' ids."""
-        kind = self.monitor.verdicts(codes // self.num_s)
-        out = np.where(kind == rules.VIOLATED, VIOLATED, SATISFIED).astype(np.int64)
-        pending = kind == rules.PENDING
+    def intern(self, codes: IntArray, kind: IntArray | None = None) -> tuple[Index, IntArray]:
+        """Product ids (32-bit) of ``q * S + s`` codes, new ones numbered in order of first
+        appearance, and the new states' codes; ``kind``: the codes' verdicts when the caller
+        has them (else the monitor's of ``q``)."""
+        if kind is None:
+            kind = self.monitor.verdicts(codes // self.num_s)
+        is_pending = kind == rules.PENDING
+        every = bool(is_pending.all())
+        if not every:
+            out = (kind != rules.VIOLATED).astype(np.int32)  # VIOLATED is 0, SATISFIED 1
+            pending = np.flatnonzero(is_pending)
+            codes = codes[pending]
         if len(codes) and int(codes.max()) >= len(self.ids):
             grown = np.full(max(int(codes.max()) + 1, 2 * len(self.ids)), -1, dtype=np.int32)
             grown[: len(self.ids)] = self.ids
             self.ids = grown
-        fresh = codes[pending][self.ids[codes[pending]] < 0]
-        unique, first = np.unique(fresh, return_index=True)
-        new_codes = unique[np.argsort(first, kind="stable")]
+        found = self.ids[codes]
+        fresh_at = np.flatnonzero(found < 0)
+        fresh = codes[fresh_at]
+        new_codes = self._first_seen(fresh)
         if self.too_large(self.count + len(new_codes)):
             from mitlc.product.explicit import _too_large
 
@@ -132,12 +253,28 @@ class Builder:
             )
         if self.count + len(new_codes) > INDEX_LIMIT:
             raise OverflowError("a product of more than 2^31 states")
-        new_ids = np.arange(self.count, self.count + len(new_codes), dtype=np.int64)
-        self.ids[new_codes] = new_ids
+        self.ids[new_codes] = np.arange(self.count, self.count + len(new_codes))
         self.codes.append(new_codes)
         self.count += len(new_codes)
-        out[pending] = self.ids[codes[pending]]
-        return out, new_ids
+        found[fresh_at] = self.ids[fresh]
+        if every:
+            return found, new_codes
+        out[pending] = found
+        return out, new_codes
+
+    def _first_seen(self, fresh: IntArray) -> IntArray:
+        """The distinct codes of ``fresh`` (none in the table yet) in order of first
+        appearance, found on the table of ids: each code's entry is set to the least position
+        it occurs at (``np.minimum.at``), and an occurrence is the first exactly when its
+        position is the one left there. No sort; the entries are left unseen (``-1``)."""
+        if not len(fresh):
+            return fresh
+        position = np.arange(len(fresh), dtype=self.ids.dtype)
+        self.ids[fresh] = INDEX_LIMIT
+        np.minimum.at(self.ids, fresh, position)
+        first: IntArray = fresh[self.ids[fresh] == position]
+        self.ids[fresh] = -1
+        return first
 
     def jumps(self, q: IntArray) -> tuple[IntArray, IntArray, IntArray]:
         """For each entry of ``q``: how many epsilon jumps it has, their targets and their
@@ -160,94 +297,85 @@ class Builder:
         targets: IntArray = flat[start[inverse[owner]] + rank]
         return counts, targets, rank
 
-    def build(self, start_codes: IntArray) -> IntArray:
+    def build(self, start_codes: IntArray) -> Index:
         """Explore from ``start_codes`` (the start states' pair codes); the start states'
         product ids (absorbing ones for a start already decided)."""
-        initial, frontier = self.intern(start_codes)
-        codes = self.codes.data[self.codes.size - len(frontier) : self.codes.size].copy()
-        while len(frontier):
+        initial, codes = self.intern(start_codes)
+        while len(codes):
             self.deadline.check_now()
-            level_start = self.codes.size
-            frontier = self._level(frontier, codes)
-            # The new states' ids are consecutive, in the order their codes were appended.
-            codes = self.codes.data[level_start : self.codes.size].copy()
+            codes = self._level(codes)
         return initial
 
-    def _level(self, frontier: IntArray, codes: IntArray) -> IntArray:
-        """Expand one level (``frontier``: consecutive ids, ``codes`` their pairs), append its
-        choices and transitions in product order; the next level's ids."""
-        world, num_s, monitor = self.world, self.num_s, self.monitor
+    def _level(self, codes: IntArray) -> IntArray:
+        """Expand one level (the states of ``codes``, numbered consecutively in that order),
+        append its choices and transitions in product order; the next level's codes.
+
+        New states are numbered as the actions are taken: action 0 from every state of the
+        level, then action 1, ..., then the jumps."""
+        world, num_s, num_a, monitor = self.world, self.num_s, self.world.num_actions, self.monitor
         s, q = codes % num_s, codes // num_s
         q_next, marks = monitor.successors(q, self.letters[s])
-        c_owner, c_key, c_action, c_marks, e_choice, e_target, e_prob = [], [], [], [], [], [], []
-        new_frontier, made = [], 0
-        for a in range(world.num_actions):
-            rows = s * world.num_actions + a
-            lo, hi = world.transitions.indptr[rows], world.transitions.indptr[rows + 1]
-            counts = hi - lo
-            index = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-            ids, new = self.intern(
-                np.repeat(q_next, counts) * num_s + world.transitions.targets[index]
-            )
-            new_frontier.append(new)
-            c_owner.append(np.arange(len(frontier)))
-            c_key.append(np.full(len(frontier), a, dtype=np.int64))
-            c_action.append(np.full(len(frontier), a, dtype=np.int64))
-            c_marks.append(marks)
-            e_choice.append(np.repeat(np.arange(made, made + len(frontier)), counts))
-            e_target.append(ids)
-            e_prob.append(world.transitions.probs[index])
-            made += len(frontier)
+        lengths = self.row_lengths.reshape(num_s, num_a)[s]  # a state's rows are consecutive
+        moving = lengths.any(axis=1)  # the verdicts asked for: those of states that move
+        verdict = np.zeros(len(q_next), dtype=np.int64)
+        verdict[moving] = monitor.verdicts(q_next[moving])
         jump_counts, jump_targets, jump_ranks = self.jumps(q)
+        layout = Layout.of(lengths, jump_counts)
+        lengths = lengths.T.copy()  # by action, for the loop over actions
+        edges = int(layout.edge_start[-1])
+        targets, probs = self.targets.room(edges), self.probs.room(edges)
+        new_codes, transitions = [], world.transitions
+        lo = transitions.indptr[s * num_a]  # where each state's row of action ``a`` starts
+        for a in range(num_a):
+            counts = lengths[a]
+            # The world's entries of each state's row, and where they go in the product.
+            index = np.repeat(lo - exclusive_sum(counts)[:-1], counts) + np.arange(counts.sum())
+            to = index + np.repeat(layout.edge_start[layout.world_choices(a)] - lo, counts)
+            pair = np.repeat(q_next * num_s, counts) + transitions.targets[index]
+            ids, new = self.intern(pair, np.repeat(verdict, counts))
+            targets[to], probs[to] = ids, transitions.probs[index]
+            new_codes.append(new)
+            lo += counts
+        del lengths
+        choices = int(layout.first[-1])
+        self.choice_ptr.append(self.action.size + layout.first[1:])
+        action, choice_marks = self.action.room(choices), self.marks.room(choices)
         if jump_counts.any():
-            owner = np.repeat(np.arange(len(frontier)), jump_counts)
+            world_choices = layout.first[:-1, None] + np.arange(num_a)
+            action[world_choices], choice_marks[world_choices] = np.arange(num_a), marks[:, None]
+            del world_choices
+            owner = np.repeat(np.arange(len(codes)), jump_counts)
+            choice = layout.first[owner] + num_a + jump_ranks  # after the world actions
             ids, new = self.intern(jump_targets * num_s + s[owner])
-            new_frontier.append(new)
-            c_owner.append(owner)
-            c_key.append(world.num_actions + jump_ranks)  # jumps after the world actions
-            c_action.append(-1 - jump_targets)
-            c_marks.append(np.zeros(len(owner), dtype=np.int64))
-            e_choice.append(np.arange(made, made + len(owner)))
-            e_target.append(ids)
-            e_prob.append(np.ones(len(owner)))
-        self._append_level(
-            len(frontier),
-            np.concatenate(c_owner),
-            np.concatenate(c_key),
-            np.concatenate(c_action),
-            np.concatenate(c_marks),
-            (np.concatenate(e_choice), np.concatenate(e_target), np.concatenate(e_prob)),
-        )
-        return np.concatenate(new_frontier)
+            targets[layout.edge_start[choice]], probs[layout.edge_start[choice]] = ids, 1.0
+            action[choice], choice_marks[choice] = -1 - jump_targets, 0
+            new_codes.append(new)
+        else:  # every state's actions in order
+            action.reshape(len(codes), num_a)[:] = np.arange(num_a)
+            choice_marks.reshape(len(codes), num_a)[:] = marks[:, None]
+        self.action.keep(choices)
+        self.marks.keep(choices)
+        self._merge_level(layout.edge_start, targets, probs)
+        return np.concatenate(new_codes)
 
-    def _append_level(
-        self,
-        states: int,
-        owner: IntArray,
-        key: IntArray,
-        action: IntArray,
-        marks: IntArray,
-        edges: tuple[IntArray, IntArray, FloatArray],
-    ) -> None:
-        """Append one level's choices sorted by state, then action (jumps last, in the order
-        of the automaton state's jumps: the wrapper's jump actions), and their transitions
-        with duplicate targets summed and targets sorted within each choice (in the order the
-        edges were made, so sums are those of a whole-product merge)."""
-        e_choice, e_target, e_prob = edges
-        order = np.lexsort((key, owner))
-        rank = np.empty_like(order)
-        rank[order] = np.arange(len(order))
-        combined = rank[e_choice] * self.count + e_target
-        unique, inverse = np.unique(combined, return_inverse=True)
-        # Summed in the order the edges were made, as ``np.add.at`` sums them: the same floats.
-        probs = np.bincount(inverse, weights=e_prob, minlength=len(unique))
-        edge_choice = unique // self.count
-        base_choice, base_edge = self.action.size, self.targets.size
-        per_state = np.bincount(owner, minlength=states)
-        self.choice_ptr.append(base_choice + np.cumsum(per_state))
-        self.action.append(action[order])
-        self.marks.append(marks[order])
-        per_choice = np.bincount(edge_choice, minlength=len(order))
-        self.indptr.append(base_edge + np.cumsum(per_choice))
-        self.targets.append(unique % self.count)
-        self.probs.append(probs)
+    def _merge_level(self, starts: IntArray, targets: Index, probs: FloatArray) -> None:
+        """Merge a level's transitions (choice ``c``'s: ``starts[c] .. starts[c+1]-1``,
+        written in the room after the product's) by :func:`merge_rows`, about
+        :data:`MERGE_BLOCK` of them at a time, each block moved down to where the merged ones
+        before it end; keep them and their choices' pointers."""
+        lo, choices, at = 0, len(starts) - 1, 0
+        while lo < choices:
+            hi = int(np.searchsorted(starts, starts[lo] + MERGE_BLOCK, side="right")) - 1
+            hi = min(max(hi, lo + 1), choices)
+            block = slice(int(starts[lo]), int(starts[hi]))
+            given = targets[block]
+            merged, summed, sizes = merge_rows(
+                starts[lo : hi + 1] - starts[lo], given, probs[block], self.count
+            )
+            self.indptr.append(self.targets.size + at + np.cumsum(sizes))
+            if merged is not given or at != block.start:  # merged, or moved down
+                targets[at : at + len(merged)], probs[at : at + len(merged)] = merged, summed
+            at += len(merged)
+            lo = hi
+        self.targets.keep(at)
+        self.probs.keep(at)
