@@ -14,6 +14,8 @@ Rows (each measured in this run; every figure printed is one this script compute
 * ``two-robots-noisy``: robot_1 with the paper's noisy sensor. The independent learners' success
   (Monte Carlo) beside the joint MDP optimum (an upper bound) and the observation-based bound
   (``pmax_horizon_observed``, a lower bound on the best observation-based joint policy).
+* ``scale``: three robots on a 10x10 depot with three deadlines, and four robots on 3x5
+  (``bench/worlds/``): robots x cells x automaton states, the product, seconds and peak memory.
 * ``warehouse``: ``specs/teams/warehouse.yaml``, three robots on an 8x8 grid. The exact optimum
   in a child process (its time and peak memory, ``ru_maxrss``), and independent Q under the
   per-robot shield with theta = 1 (its exact success, and the preventable violations and
@@ -41,6 +43,9 @@ sys.path.insert(0, str(ROOT))
 
 TEAMS = ROOT / "specs" / "teams"
 EPISODES = 300_000
+SCALE = ("depot-10x10", "four-robots")
+"""The scale rows: three robots on a 10x10 depot with three deadlines, and four robots on
+3x5 (near the joint-table limit), in ``bench/worlds/``."""
 
 
 def exact_two_robots(world_path: Path) -> dict[str, Any]:
@@ -170,6 +175,8 @@ def main() -> None:
         TEAMS / "two-robots-noisy.yaml", noisy, {**budget, "team": "independent", "algo": "q"}
     )
     results["warehouse_exact"] = exact_in_child(TEAMS / "warehouse.yaml")
+    for name in SCALE:
+        results[f"scale_{name}"] = exact_in_child(ROOT / "bench" / "worlds" / f"{name}.yaml")
     shielded = runs / "warehouse-independent-shield"
     results["warehouse_independent_q_shield"] = learn(
         TEAMS / "warehouse.yaml", shielded, {**budget, "team": "independent", "shield": 1.0}
@@ -220,6 +227,17 @@ def table(r: dict[str, Any]) -> str:
         f"{'warehouse: pmax_horizon, seconds, peak GB':62s} "
         f"{w['pmax_horizon']:.6f} {w['seconds_exact']:.1f} {w['peak_gb']:.1f}",
     ]
+    for name in SCALE:
+        x = r[f"scale_{name}"]
+        lines.append(
+            f"{'scale ' + name + ': robots x cells x automaton states':62s} "
+            f"{x['robots']} x {x['free_cells']} x {x['automaton_states']}"
+        )
+        lines.append(
+            f"{'  product states, pmax_horizon, seconds, peak GB':62s} "
+            f"{x['product_states']:,} {x['pmax_horizon']:.6f} {x['seconds_exact']:.1f} "
+            f"{x['peak_gb']:.1f}"
+        )
     s = r["warehouse_independent_q_shield"]
     lines.append(
         f"{'warehouse: independent Q + shield 1 (exact, ratio, train s)':62s} "
