@@ -209,6 +209,14 @@ SMALL_NETWORKS_ON_CUDA = (
 """The note of a deep run that ``auto`` puts on CUDA (measured by ``bench/device_speed.py``)."""
 
 
+def is_team(world: Any) -> bool:
+    """Whether ``world`` learns as a team of agents sharing one policy: it makes its
+    multi-agent env (``team_env``) and the SB3 vector of its agents (``vec_env``), as a
+    PettingZoo world does (asked of the world, never of its kind;
+    :mod:`mitlc.learn.backends.sb3_team`)."""
+    return callable(getattr(world, "team_env", None)) and callable(getattr(world, "vec_env", None))
+
+
 def setting_notes(setting: Setting) -> list[str]:
     """One-line notes on a run's setting: a horizon shorter than the task needs to be decided
     (:func:`mitlc.task.horizon.short_horizon_note`); the guarantee of its shield; a network that
@@ -269,7 +277,7 @@ def batches(setting: Setting, seed: int) -> Batches:
 
         return product_batch
     base = int(np.random.SeedSequence(seed).generate_state(1, np.uint64)[0] >> np.uint64(1))
-    if getattr(setting.world, "kind", None) == "pettingzoo":  # whole team episodes
+    if is_team(setting.world):  # whole team episodes
         from mitlc.learn.backends.sb3_team import team_batches
 
         made: Batches = team_batches(setting, base)

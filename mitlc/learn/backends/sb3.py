@@ -69,7 +69,7 @@ from mitlc.learn.backends.sb3_offpolicy import (
     offpolicy_settings,
 )
 from mitlc.learn.backends.sb3_replay import ReplayState
-from mitlc.learn.backends.sb3_team import check_team, is_team, team_venv, team_view
+from mitlc.learn.backends.sb3_team import check_team, team_venv, team_view
 from mitlc.learn.config import TrainConfig
 from mitlc.learn.device import resolve_device
 from mitlc.learn.held import run_never_held
@@ -89,6 +89,7 @@ from mitlc.learn.rundir.runlog import (
 from mitlc.learn.rundir.state import one_line, restore
 from mitlc.learn.setting import (
     Setting,
+    is_team,
     opened_run,
     prepare,
     save_config,

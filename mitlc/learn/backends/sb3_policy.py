@@ -23,7 +23,7 @@ import torch
 from gymnasium import spaces
 
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
-from mitlc.learn.backends.sb3_team import TeamLearner, is_team, load_team_learner
+from mitlc.learn.backends.sb3_team import TeamLearner, load_team_learner
 from mitlc.learn.envs.vec import Step
 from mitlc.learn.learners.base import Episodes, Learner, Policy
 from mitlc.learn.learners.encoder import Encoder, task_features
@@ -31,7 +31,7 @@ from mitlc.learn.learners.nets import build, configure_torch, greedy
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import RunError
 from mitlc.learn.rundir.state import Mismatch, conform
-from mitlc.learn.setting import Setting, task_vector_of
+from mitlc.learn.setting import Setting, is_team, task_vector_of
 from mitlc.worlds.model import BoolArray, IntArray
 
 CHUNK = 4096

@@ -33,11 +33,6 @@ from mitlc.worlds.model import BoolArray, IntArray
 from mitlc.worlds.pettingzoo_world import TeamEnvTask
 
 
-def is_team(world: Any) -> bool:
-    """Whether ``world`` is a PettingZoo team world."""
-    return getattr(world, "kind", None) == "pettingzoo"
-
-
 def _world(setting: Setting) -> TeamEnvTask:
     world = setting.world
     assert isinstance(world, TeamEnvTask), "a PettingZoo team world"
