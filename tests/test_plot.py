@@ -169,3 +169,27 @@ def test_a_run_cut_short_keeps_its_complete_lines(runs: dict[str, Path], tmp_pat
 def test_not_a_run_directory(tmp_path: Path) -> None:
     with pytest.raises(RunError, match="not a run directory"):
         plot_run(tmp_path)
+
+
+def test_a_recurring_tasks_rounds_are_read_beside_its_success(
+    runs: dict[str, Path], tmp_path: Path
+) -> None:
+    """A window's ``rounds`` (a patrol's completed rounds per episode) reach the learning curve
+    where some window has any; a task without recurrences has none to draw."""
+    import json
+
+    from mitlc.learn.plots.common import learning_curve
+
+    lines = (runs["case1"] / METRICS).read_text(encoding="utf-8").splitlines()
+    assert read_metrics(runs["case1"]).rounds is None  # case 1's deadlines: no rounds
+    rows = [json.loads(line) for line in lines]
+    for i, row in enumerate(rows):
+        row["rounds"] = 0.5 * i
+    (tmp_path / METRICS).write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    metrics = read_metrics(tmp_path)
+    assert metrics.rounds is not None and list(metrics.rounds) == [
+        0.5 * i for i in range(len(rows))
+    ]
+    figure = learning_curve(metrics, "patrol")
+    assert f"rounds {0.5 * (len(rows) - 1):.2f}" in figure.get_suptitle()
+    assert len(figure.axes) == 4  # success, its rounds axis, return, violations

@@ -39,6 +39,9 @@ class Metrics:
     epsilon: FloatArray
     violations: FloatArray | None = None
     """The training episodes ended violated so far (runs that record them: all lines)."""
+    rounds: FloatArray | None = None
+    """The mean rounds of the acceptance sets completed per episode of each window (a
+    recurring task's patrols, docs/episodes.md; ``None`` where no line has any)."""
 
 
 def read_metrics(directory: Path) -> Metrics:
@@ -56,7 +59,12 @@ def read_metrics(directory: Path) -> Metrics:
     violations = None
     if all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in counts):
         violations = np.asarray(counts, dtype=np.float64)
-    return Metrics(columns[0], columns[1], columns[2], columns[3], violations)
+    rounds = [row.get("rounds") for row in read]
+    patrols = None
+    if all(isinstance(r, int | float) and not isinstance(r, bool) for r in rounds):
+        found = np.asarray(rounds, dtype=np.float64)
+        patrols = found if found.any() else None
+    return Metrics(columns[0], columns[1], columns[2], columns[3], violations, patrols)
 
 
 def png_bytes(figure: Figure) -> bytes:
@@ -70,7 +78,8 @@ def png_bytes(figure: Figure) -> bytes:
 
 
 def learning_curve(metrics: Metrics, title: str) -> Figure:
-    """Success rate (with epsilon) above, mean return below, against the episodes."""
+    """Success rate (with epsilon, and a recurring task's rounds per episode) above, mean
+    return below, against the episodes."""
     figure = Figure(figsize=CURVE_SIZE, dpi=DPI, layout="constrained")
     top, bottom = figure.subplots(2, 1, sharex=True)
     marker = "o" if len(metrics.episodes) <= 60 else None
@@ -88,6 +97,12 @@ def learning_curve(metrics: Metrics, title: str) -> Figure:
     top.set_ylim(-0.02, 1.02)
     top.set_ylabel("success rate")
     top.legend(loc="lower right", frameon=False)
+    if metrics.rounds is not None:  # a recurring task: its patrols beside its success
+        rounds = top.twinx()
+        rounds.plot(metrics.episodes, metrics.rounds, color="tab:purple", linestyle="-.")
+        rounds.set_ylabel("rounds per episode (dash-dot)", color="tab:purple")
+        rounds.set_ylim(bottom=0)
+        rounds.spines[["top"]].set_visible(False)
     bottom.plot(
         metrics.episodes, metrics.mean_return, color="tab:blue", marker=marker, markersize=3
     )
@@ -105,5 +120,7 @@ def learning_curve(metrics: Metrics, title: str) -> Figure:
     last = (
         f"last window: success {metrics.success_rate[-1]:.3f}, return {metrics.mean_return[-1]:.1f}"
     )
+    if metrics.rounds is not None:
+        last += f", rounds {metrics.rounds[-1]:.2f}"
     figure.suptitle(f"{title}\n{last}", fontsize=12)
     return figure
