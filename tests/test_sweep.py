@@ -373,3 +373,28 @@ def test_an_optimum_of_zero_is_an_exact_optimum(tmp_path: Path) -> None:
     data = report(out, reps=100).data
     assert data["worlds"]["never"]["score_kind"] == OVER_OPTIMUM
     assert data["across_worlds"]["worlds"] == ["frozenlake-4x4", "never"]
+
+
+def test_a_patrols_rounds_per_episode_reach_the_report(tmp_path: Path) -> None:
+    """Trials of a recurring task report their evaluation's mean rounds; the report keeps them
+    per seed and the table shows their mean where any world has some."""
+    from mitlc.sweep.report import report
+
+    for setting, rounds in (("a", [2.0, 3.0]), ("b", [0.5, 1.5])):
+        for seed, mean_rounds in enumerate(rounds):
+            trial_id = f"patrol--{setting}--s{seed}"
+            folder = tmp_path / "trials" / trial_id
+            folder.mkdir(parents=True)
+            (folder / "metrics.jsonl").write_text(
+                json.dumps({"episodes": 100, "success_rate": 0.5}) + "\n"
+            )
+            (folder / RESULT).write_text(json.dumps({
+                "world_name": "patrol", "setting": setting, "seed": seed, "trial_id": trial_id,
+                "optimum": 1.0, "success_rate": 0.5, "score": 0.5 + 0.1 * seed,
+                "score_kind": "success / optimum", "mean_rounds": mean_rounds,
+            }))  # fmt: skip
+    data = report(tmp_path, reps=100).data
+    assert data["worlds"]["patrol"]["settings"]["a"]["rounds"] == [2.0, 3.0]
+    markdown = (tmp_path / "report.md").read_text()
+    assert "mean rounds per episode" in markdown
+    assert "| 2.50 |" in markdown and "| 1.00 |" in markdown

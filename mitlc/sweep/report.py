@@ -140,6 +140,7 @@ def report(directory: Path, *, reps: int = 2000, seed: int = 0) -> Report:
                 name: {
                     "seeds": sorted(runs),
                     "scores": [runs[s]["score"] for s in sorted(runs)],
+                    "rounds": [float(runs[s].get("mean_rounds", 0.0)) for s in sorted(runs)],
                     **estimates[name],
                 }
                 for name, runs in sorted(settings.items())
@@ -184,11 +185,14 @@ def markdown(data: dict[str, Any]) -> str:
              f"resamples, seed {data['seed']}).", ""]  # fmt: skip
     head = "| setting | seeds | IQM | median | mean | optimality gap |"
     for world, entry in data["worlds"].items():
-        lines += [f"## {world}", "", f"Score: {entry['score_kind']}.", "", head,
-                  "|---|---|---|---|---|---|"]  # fmt: skip
+        patrols = any(any(s.get("rounds", ())) for s in entry["settings"].values())
+        extra = (" mean rounds per episode |", "---|") if patrols else ("", "")
+        lines += [f"## {world}", "", f"Score: {entry['score_kind']}.", "", head + extra[0],
+                  "|---|---|---|---|---|---|" + extra[1]]  # fmt: skip
         for name, s in entry["settings"].items():
             cells = " | ".join(_cell(s[stat]) for stat in STATISTICS)
-            lines.append(f"| {name} | {len(s['seeds'])} | {cells} |")
+            rounds = f" {np.mean(s['rounds']):.2f} |" if patrols else ""
+            lines.append(f"| {name} | {len(s['seeds'])} | {cells} |{rounds}")
         if entry["probability_of_improvement"]:
             lines += ["", "| probability of improvement | P(X > Y) |", "|---|---|"]
             for pair, values in entry["probability_of_improvement"].items():

@@ -113,6 +113,7 @@ def run_trial(
         "train_steps": summary["steps"],
         "train_seconds": summary["seconds"],
         "eval_episodes": evaluation.episodes,
+        "mean_rounds": evaluation.mean_rounds,
     }
     _write(directory / RESULT, result, write_atomically)
     return result
