@@ -8,6 +8,7 @@ Counted from the outside: every ``os.open``/``open`` of the world file, and ever
 from __future__ import annotations
 
 import builtins
+import importlib
 import io
 import os
 from collections import Counter
@@ -69,7 +70,15 @@ def tally(world: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Tally]:
         counts.makes[str(getattr(env_id, "id", env_id))] += 1
         return real_make(env_id, *args, **kwargs)
 
+    spread = importlib.import_module("mpe2.simple_spread_v3")
+    real_parallel = spread.parallel_env
+
+    def parallel_env(*args: Any, **kwargs: Any) -> Any:
+        counts.makes["mpe2.simple_spread_v3"] += 1
+        return real_parallel(*args, **kwargs)
+
     with monkeypatch.context() as patch:
+        patch.setattr(spread, "parallel_env", parallel_env)
         patch.setattr(os, "open", os_open)
         patch.setattr(builtins, "open", py_open)
         patch.setattr(io, "open", py_open)
@@ -86,6 +95,8 @@ def worlds(tmp_path: Path) -> dict[str, Path]:
         "finite-env": ROOT / "specs" / "gym" / "frozenlake4x4.yaml",
         "open-env": cart,
         "plane": ROOT / "specs" / "continuous" / "case1.yaml",
+        "team": ROOT / "specs" / "teams" / "two-robots.yaml",
+        "pettingzoo": ROOT / "specs" / "teams" / "mpe-spread.yaml",
     }
 
 
@@ -96,8 +107,11 @@ BUDGET = {
     "open-env": [],
     "plane": ["--set", "dqn.episodes=2", "--set", "dqn.warmup_steps=16",
               "--set", "dqn.num_envs=2"],
+    "team": ["--episodes", "200", "--set", "q.num_envs=8", "--set", "team=independent"],
+    "pettingzoo": ["--set", "sb3.steps=256", "--set", "sb3.num_envs=1", "--set", "sb3.n_steps=64",
+                   "--set", "eval_episodes=4"],
 }  # fmt: skip
-LEARNER_ENVS = {"open-env": 2, "plane": 0}
+LEARNER_ENVS = {"open-env": 2, "plane": 0, "pettingzoo": 1}
 """The gymnasium envs each learner runs (``num_envs``); finite worlds run the simulator."""
 
 
@@ -118,8 +132,10 @@ def test_train_eval_and_plot_read_the_world_once_and_make_one_probe_at_most(
         assert result.exit_code == 0, (name, result.output)
         assert counts.reads == 1, f"{kind} {name}: the world file read {counts.reads} times"
         made = sum(counts.makes.values())
-        allowed = LEARNER_ENVS.get(kind, 0) + (1 if kind.endswith("env") else 0)
-        if name == "train" or kind != "open-env":
+        allowed = LEARNER_ENVS.get(kind, 0) + (
+            1 if kind.endswith("env") or kind == "pettingzoo" else 0
+        )
+        if name == "train" or kind not in ("open-env", "pettingzoo"):
             assert made <= allowed, f"{kind} {name}: {dict(counts.makes)} made"
         if kind == "finite-env":
             assert made == 1  # the probe that tells it is finite, and nothing else
@@ -143,13 +159,15 @@ def test_the_declaration_is_of_its_kind_and_the_world_answers_for_itself(
     found = {name: read_world(path) for name, path in worlds(tmp_path).items()}
     assert {name: d.kind for name, d in found.items()} == {
         "grid": "grid", "pomdp": "grid", "finite-env": "env", "open-env": "env", "plane": "plane",
+        "team": "team", "pettingzoo": "pettingzoo",
     }  # fmt: skip
     built = {name: d.build() for name, d in found.items()}
     finite = {name for name, w in built.items() if is_finite(w)}
-    assert finite == {"grid", "pomdp", "finite-env"}
+    assert finite == {"grid", "pomdp", "finite-env", "team"}
     algos = {name: config_for(w, {})[0].algo for name, w in built.items()}
     assert algos == {
         "grid": "q", "pomdp": "drqn", "finite-env": "q", "open-env": "dqn", "plane": "dqn",
+        "team": "q", "pettingzoo": "sb3-ppo",
     }  # fmt: skip
     assert built["grid"].drawing is not None and built["finite-env"].drawing is None
     assert built["open-env"].drawing is None and built["plane"].drawing is built["plane"]
