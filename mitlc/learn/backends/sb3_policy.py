@@ -22,10 +22,11 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
+from mitlc.learn.backends.loaded import LoadedLearner
 from mitlc.learn.backends.sb3 import algorithm, model_settings, wrapped_env
 from mitlc.learn.backends.sb3_team import TeamLearner, load_team_learner
 from mitlc.learn.envs.vec import Step
-from mitlc.learn.learners.base import Episodes, Learner, Policy
+from mitlc.learn.learners.base import Episodes, Policy
 from mitlc.learn.learners.encoder import Encoder, task_features
 from mitlc.learn.learners.nets import build, configure_torch, greedy
 from mitlc.learn.rundir import checkpoint
@@ -119,13 +120,12 @@ class SB3RecurrentPolicy(Policy):
         self.starts[torch.from_numpy(step.done)] = 1.0
 
 
-class SB3Learner(Learner):
+class SB3Learner(LoadedLearner):
     """A trained SB3 policy loaded for ``mitlc eval`` and ``mitlc plot`` (it does not train:
     :func:`train` does)."""
 
     def __init__(self, net: Any, setting: Setting) -> None:
-        self.net, self.setting = net, setting
-        self.num_envs = setting.config.sb3.num_envs
+        super().__init__(net, setting)
         # the layout of the wrapper's flat observation, which the network was trained on
         task = task_features(setting.automaton, setting.config.task_obs)
         if setting.tables is None:
@@ -141,23 +141,6 @@ class SB3Learner(Learner):
                 setting.tables, num_automaton_states=len(setting.automaton.states),
                 task_features=task,
             )  # fmt: skip
-
-    def train_step(self, env: Episodes, fraction: float) -> Step:
-        """Not here: an sb3 run trains through :func:`train`."""
-        raise RunError("an sb3 run trains through mitlc.learn.backends.sb3.train")
-
-    @property
-    def epsilon(self) -> float:
-        """No exploration: the policy is greedy."""
-        return 0.0
-
-    def state_dict(self) -> dict[str, Any]:
-        """The policy's weights."""
-        return {"policy": dict(self.net.state_dict())}
-
-    def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Load :meth:`state_dict`."""
-        self.net.load_state_dict(saved["policy"])
 
     def policy(self) -> Policy:
         """The greedy policy, recurrent or memoryless."""

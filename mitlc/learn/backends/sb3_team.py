@@ -22,8 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from mitlc.learn.backends.loaded import LoadedLearner
 from mitlc.learn.envs.vec import Step
-from mitlc.learn.learners.base import Episodes, Learner, Policy
+from mitlc.learn.learners.base import Episodes, Policy
 from mitlc.learn.learners.nets import build, configure_torch
 from mitlc.learn.rundir import checkpoint
 from mitlc.learn.rundir.files import RunError
@@ -153,29 +154,8 @@ class TeamPolicy(Policy):
         return np.asarray(actions)
 
 
-class TeamLearner(Learner):
+class TeamLearner(LoadedLearner):
     """A trained shared policy loaded for ``mitlc eval`` and ``mitlc plot``."""
-
-    def __init__(self, net: Any, setting: Setting) -> None:
-        self.net, self.setting = net, setting
-        self.num_envs = setting.config.sb3.num_envs
-
-    def train_step(self, env: Episodes, fraction: float) -> Step:
-        """Not here: an sb3 run trains through :func:`mitlc.learn.backends.sb3.train`."""
-        raise RunError("an sb3 run trains through mitlc.learn.backends.sb3.train")
-
-    @property
-    def epsilon(self) -> float:
-        """No exploration: the policy is greedy."""
-        return 0.0
-
-    def state_dict(self) -> dict[str, Any]:
-        """The policy's weights."""
-        return {"policy": dict(self.net.state_dict())}
-
-    def load_state_dict(self, saved: dict[str, Any]) -> None:
-        """Load :meth:`state_dict`."""
-        self.net.load_state_dict(saved["policy"])
 
     def policy(self) -> Policy:
         """The greedy shared policy."""
