@@ -120,9 +120,11 @@ def check_command(
     if "start_states" in summary:
         typer.echo(
             f"note: the start is drawn from {summary['start_states']} states; pmax and "
-            "pmax_horizon are averaged over the start distribution",
+            "pmax_horizon are averaged over the start distribution (per start cell: --json)",
             err=True,
         )
+    if as_json and "start_states" in summary:
+        summary["start_cells"] = report.start_cells(world)
     observed, why = _observed(world, report.product, deadline) if world.is_pomdp else (None, "")
     if world.is_pomdp:
         summary["pmax_horizon_observed"] = observed.value if observed is not None else why

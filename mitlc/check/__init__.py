@@ -11,9 +11,9 @@ from mitlc.check.costs import LeastCost, least_cost
 from mitlc.check.solve import Solution, pmax, pmax_horizon
 from mitlc.limits import DEFAULT_MAX_PRODUCT_STATES, DEFAULT_TIME_LIMIT, Deadline
 from mitlc.product.costs import product_costs
-from mitlc.product.explicit import Product, build_product, start_average
+from mitlc.product.explicit import Product, build_product, start_average, start_distribution
 from mitlc.task import TaskAutomaton
-from mitlc.worlds.model import World
+from mitlc.worlds.model import FloatArray, World
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,6 +31,9 @@ class CheckReport:
     cost: LeastCost | None = None
     """For a world with costs: the least expected cost within the horizon among the policies
     of best success (:mod:`mitlc.check.costs`), and that policy."""
+    horizon_values: FloatArray | None = None
+    """Per product state, the best success within the whole horizon from it (the first
+    round's values: no acceptance set seen yet); ``pmax_horizon`` is their start average."""
 
     @property
     def product_states(self) -> int:
@@ -65,6 +68,26 @@ class CheckReport:
         if len(starts) <= 1:
             return {}
         return {"start_states": len(starts)}
+
+    def start_cells(self, world: World) -> list[dict[str, Any]]:
+        """For a drawn start, per start cell (in cell order): its probability, and ``pmax``
+        and ``pmax_horizon`` from it (averaged over the states of the cell, the outcomes of
+        its uncertain labels: :mod:`mitlc.worlds.uncertain`)."""
+        product, horizon = self.product, self.horizon_values
+        starts = start_distribution(world)
+        pairs = list(zip(starts, product.starts, strict=False))
+        if len(product.starts) != len(starts):  # decided at the start: one absorbing state
+            pairs = [(sp, product.starts[0]) for sp in starts]
+        cells: dict[tuple[int, ...], list[float]] = {}
+        for (s, p), (x, _) in pairs:
+            found = cells.setdefault(tuple(world.cells[s]), [0.0, 0.0, 0.0])
+            found[0] += p
+            found[1] += p * float(self.solution.values[x])
+            found[2] += p * (float(horizon[x]) if horizon is not None else float("nan"))
+        return [
+            {"cell": list(cell), "probability": p, "pmax": a / p, "pmax_horizon": b / p}
+            for cell, (p, a, b) in sorted(cells.items())
+        ]
 
     def policy_data(
         self, world: World, automaton: TaskAutomaton | None = None
@@ -141,4 +164,5 @@ def check(
         seconds=time.perf_counter() - start,
         solution=solution,
         cost=cost,
+        horizon_values=history[-1][0],
     )

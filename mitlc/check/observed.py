@@ -120,6 +120,8 @@ class _Model:
     initial: int
     observing: _Observing
     num_q: int
+    start: FloatArray
+    """The start distribution over the states (mask 0: the product's start states)."""
 
     @property
     def size(self) -> int:
@@ -156,8 +158,7 @@ def observed_bound(
             f"{steps} steps x {len(observing.pair_state):,} (observation, state) pairs is past "
             f"the limit of {max_cells:,} (observed_bound's max_cells lifts it)"
         )
-    start = np.zeros(model.size)
-    start[model.initial] = 1.0
+    start = model.start
     # The fully observable optimum's state distribution weighs the first sweep.
     states = np.unique(observing.pair_state)
     identity = _Observing.of(states, np.ones(len(states)), states, model.size)
@@ -203,6 +204,9 @@ def _model(world: World, product: Product) -> _Model:
     terminal[absorbing] = absorbing_values
     num_q = int(product.automaton_state.max()) + 1
     pair_state, pair_prob, pair_key = _pairs(world, product, live, masks, num_q)
+    start = np.zeros(masks * n)
+    for x, p in product.starts:  # a drawn start (mitlc.worlds.uncertain) weighs its states
+        start[x] += p
     return _Model(
         moves=moves,
         moves_t=moves.T.tocsr(),
@@ -213,6 +217,7 @@ def _model(world: World, product: Product) -> _Model:
         initial=int(product.initial),
         observing=_Observing.of(pair_state, pair_prob, pair_key, masks * n),
         num_q=num_q,
+        start=start,
     )
 
 
@@ -299,4 +304,4 @@ def _backward(
         gained = q[choice[pairs.pair_key], pairs.pair_state] * pairs.pair_prob
         values = np.bincount(pairs.pair_state, gained, minlength=model.size).astype(np.float64)
         values[model.absorbing] = model.absorbing_values
-    return float(values[model.initial]), policy
+    return float(values @ model.start), policy

@@ -6,8 +6,8 @@ state, so the product POMDP splits each product state ``(s, q)`` by the observat
 emitted on entering it: its states are ``(s, q, o)`` with ``o ~ observations.model.row(s)``,
 the observation probabilities multiplied into the transitions, and the observation id is the
 pair ``(o, q)``. A fresh initial state (its own observation, one choice) samples the
-observation of the start state. The absorbing ``violated`` and ``satisfied`` states get
-observations of their own.
+start state (the world's start distribution) and its observation. The absorbing
+``violated`` and ``satisfied`` states get observations of their own.
 
 The property is reachability, which is what Storm's POMDP checkers take: ``Pmax=? [F
 "satisfied"]``. This equals the task's probability under *every* policy when the product MDP
@@ -60,6 +60,7 @@ from mitlc.product.explicit import (
     Product,
     build_product,
     product_ends,
+    start_average,
 )
 from mitlc.task import TaskAutomaton
 from mitlc.worlds.model import World
@@ -135,7 +136,11 @@ def to_pomdp_drn(
         return out
 
     t = product.transitions
-    init_choice = successors(product.initial, 0)
+    drawn: dict[int, float] = {}  # the start states drawn, then their observations
+    for x0, p0 in product.starts:
+        for z, p in successors(x0, 0):
+            drawn[z] = drawn.get(z, 0.0) + p0 * p
+    init_choice = list(drawn.items())
     index = 0
     while index < len(order):
         clock.check()
@@ -255,7 +260,7 @@ def pomdp_bounds(
     start = time.perf_counter()
     clock = Deadline.of(deadline, time_limit, "the POMDP bounds", memory_limit)
     product = build_product(world, automaton, max_product_states=max_product_states, deadline=clock)
-    full = float(pmax(product, deadline=clock.at("pmax")).values[product.initial])
+    full = start_average(product, pmax(product, deadline=clock.at("pmax")).values)
     model = _pomdp_model(world, product, world.horizon if horizon_success else None, clock)
     built = time.perf_counter()
     time_left = _exploration_time(max_exploration_time, clock.at("Storm's unfolding"))

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 
 from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds.model import Observations, Sparse
-from mitlc.worlds.schema import Motion, WorldFile, show
+from mitlc.worlds.schema import Motion, UncertainLabel, WeightedStart, WorldFile, label_cells, show
 
 Cell = tuple[int, int]
 SideKey = tuple[Cell, str]
@@ -122,8 +122,30 @@ def check(world: WorldFile) -> tuple[Layout, Found]:
     checker, too_large = checked_layout(world)
     if too_large is not None:
         return checker.bare, too_large
-    checker.cell(("start",), world.start)
+    check_start(checker, world.start)
     return checker.layout(), checker.found
+
+
+def check_start(checker: _Checker, start: Any) -> None:
+    """The start's cells inside and free, each once, and one weight per cell
+    (:data:`~mitlc.worlds.schema.Start`'s forms)."""
+    if isinstance(start, str):  # uniform: every free cell
+        return
+    if isinstance(start, tuple):
+        checker.cell(("start",), start)
+        return
+    cells, at = (
+        (start, ("start",)) if isinstance(start, list) else (start.cells, ("start", "cells"))
+    )
+    for i, cell in enumerate(cells):
+        checker.cell((*at, i), cell)
+    checker.once(at, "cell", cells)
+    if isinstance(start, WeightedStart) and len(start.weights) != len(start.cells):
+        message = (
+            f"{len(start.weights)} weights for {len(start.cells)} cells (one weight per cell, "
+            "in the same order)"
+        )
+        checker.found.append((("start", "weights"), message))
 
 
 class GridFile(Protocol):
@@ -134,7 +156,7 @@ class GridFile(Protocol):
     @property
     def blocked(self) -> Sequence[Cell]: ...
     @property
-    def labels(self) -> Mapping[str, Sequence[Cell]]: ...
+    def labels(self) -> Mapping[str, Sequence[Cell] | UncertainLabel]: ...
     @property
     def actions(self) -> Sequence[str]: ...
     @property
@@ -158,10 +180,11 @@ def checked_layout(world: GridFile) -> tuple[_Checker, Found | None]:
     for i, cell in enumerate(world.blocked):
         checker.cell(("blocked", i), cell, free=False)
     checker.once(("blocked",), "cell", world.blocked)
-    for name, cells in world.labels.items():
+    for name, label in world.labels.items():
+        cells, below = label_cells(label)
         for i, cell in enumerate(cells):
-            checker.cell(("labels", name, i), cell)
-        checker.once(("labels", name), "cell", cells)
+            checker.cell(("labels", name, *below, i), cell)
+        checker.once(("labels", name, *below), "cell", cells)
     checker.once(("actions",), "action", world.actions)
     for kind, items in (("wall", world.walls), ("door", world.doors), ("window", world.windows)):
         for i, (first, second) in enumerate(items):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -213,6 +213,90 @@ class Motion(_Model):
         return self
 
 
+PositiveNumber = Annotated[
+    float, Field(gt=0), _scalar("a positive number", lambda v: _is_number(v) and v > 0)
+]
+LabelProbability = Annotated[
+    float,
+    Field(gt=0, le=1),
+    _scalar("a probability in (0, 1]", lambda v: _is_number(v) and 0 < v <= 1),
+]
+
+
+class WeightedStart(_Model):
+    """Start cells drawn with the given weights (normalised: they need not sum to 1)."""
+
+    cells: Annotated[Cells, Field(min_length=1)] = Field(description="The start cells.")
+    weights: list[PositiveNumber] = Field(
+        description="A positive weight per cell, in the same order; the start is cell i with "
+        "probability weights[i] / sum(weights)."
+    )
+
+
+def _start_kind(value: Any) -> str | None:
+    if isinstance(value, str):
+        return "uniform"
+    if isinstance(value, dict):
+        return "weighted"
+    if isinstance(value, list | tuple):
+        return "list" if all(isinstance(x, list | tuple) for x in value) else "cell"
+    return None
+
+
+START_TAGS = ("cell", "list", "weighted", "uniform")
+"""The forms of ``start:`` (pydantic's union tags, dropped from error paths)."""
+Start = Annotated[
+    Annotated[Cell, Tag("cell")]
+    | Annotated[Annotated[Cells, Field(min_length=1)], Tag("list")]
+    | Annotated[WeightedStart, Tag("weighted")]
+    | Annotated[Literal["uniform"], Tag("uniform")],
+    Discriminator(
+        _start_kind,
+        custom_error_type="start_kind",
+        custom_error_message="expected a cell [row, col], a list of cells, "
+        "{cells: [...], weights: [...]} or uniform",
+    ),
+]
+"""Where an episode starts (:mod:`mitlc.worlds.starts`): a cell, a list of cells (drawn
+uniformly), cells with weights, or ``uniform`` (every free cell)."""
+
+
+class UncertainLabel(_Model):
+    """A proposition that holds in its cells with a probability, drawn independently each
+    time the robot is in one of them (:mod:`mitlc.worlds.uncertain`)."""
+
+    cells: Cells = Field(description="The free cells where the proposition may hold.")
+    probability: LabelProbability = Field(
+        default=1.0,
+        description="The probability that it holds, each step the robot is in one of its "
+        "cells, independently of every other step and label (1: certain).",
+    )
+
+
+def _grid_label_kind(value: Any) -> str | None:
+    return "list" if isinstance(value, list) else "uncertain" if isinstance(value, dict) else None
+
+
+LABEL_TAGS = ("list", "uncertain")
+"""The forms of a grid label (pydantic's union tags, dropped from error paths)."""
+GridLabel = Annotated[
+    Annotated[Cells, Tag("list")] | Annotated[UncertainLabel, Tag("uncertain")],
+    Discriminator(
+        _grid_label_kind,
+        custom_error_type="label_kind",
+        custom_error_message="expected a list of cells or {cells: [...], probability: p}",
+    ),
+]
+"""A grid label: its cells (certain), or ``{cells: [...], probability: p}``."""
+
+
+def label_cells(label: Sequence[Cell] | UncertainLabel) -> tuple[Sequence[Cell], tuple[str, ...]]:
+    """A grid label's cells and their path below the label's (``()`` or ``("cells",)``)."""
+    if isinstance(label, UncertainLabel):
+        return label.cells, ("cells",)
+    return label, ()
+
+
 class NoisyCell(_Model):
     """The robot observes a cell: its own, or by mistake an adjacent free cell."""
 
@@ -387,12 +471,16 @@ class WorldFile(TaskFields):
     blocked: Cells = Field(
         default_factory=list, description="Cells the robot can never be in: [row, col] each."
     )
-    labels: dict[Proposition, Cells] = Field(
+    labels: dict[Proposition, GridLabel] = Field(
         default_factory=dict,
-        description="For each proposition, the free cells where it holds. Every proposition of "
-        "the spec must label a cell; others are allowed and ignored.",
+        description="For each proposition, the free cells where it holds, or {cells: [...], "
+        "probability: p}: it holds there with probability p, independently at each step. Every "
+        "proposition of the spec must label a cell; others are allowed and ignored.",
     )
-    start: Cell = Field(description="The robot's first cell, [row, col].")
+    start: Start = Field(
+        description="The robot's first cell: [row, col]; a list of cells (drawn uniformly); "
+        "{cells: [...], weights: [...]}; or uniform (every free cell)."
+    )
     actions: list[Action] = Field(
         default_factory=lambda: list(ACTIONS),
         min_length=1,
@@ -433,9 +521,11 @@ MODELS: dict[tuple[str, ...], type[BaseModel]] = {
     ("costs",): CostsSection,
     ("costs", "propositions", "*"): PropositionCost,
     ("costs", "transitions", "*"): TransitionRule,
+    ("start", "weighted"): WeightedStart,
+    ("labels", "*", "uncertain"): UncertainLabel,
 }
 """The model at each place of the file, by pydantic's error location (union tags included; a
-list index, or a priced proposition's name, as ``*``)."""
+list index, a label's or a priced proposition's name, as ``*``)."""
 OBSERVATION_TYPES = ("noisy-cell", "local-pattern")
 
 

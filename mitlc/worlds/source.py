@@ -32,8 +32,10 @@ from mitlc.worlds.costs import Costs, read_costs
 from mitlc.worlds.grid import FieldPath, render
 from mitlc.worlds.schema import (
     ENV_MODELS,
+    LABEL_TAGS,
     MODELS,
     OBSERVATION_TYPES,
+    START_TAGS,
     EnvWorldFile,
     WorldFile,
     show,
@@ -182,10 +184,14 @@ def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[Field
 
 
 def _grid_key(loc: tuple[str | int, ...]) -> tuple[str, ...]:
-    """The key of :data:`~mitlc.worlds.schema.MODELS` at ``loc``: a list index, or a priced
-    proposition's name, as ``*``."""
+    """The key of :data:`~mitlc.worlds.schema.MODELS` at ``loc``: a list index, a label's or a
+    priced proposition's name, as ``*``."""
     return tuple(
-        "*" if isinstance(x, int) or (i == 2 and loc[:2] == ("costs", "propositions")) else x
+        "*"
+        if isinstance(x, int)
+        or (i == 2 and loc[:2] == ("costs", "propositions"))
+        or (i == 1 and loc[0] == "labels")
+        else x
         for i, x in enumerate(loc)
     )
 
@@ -196,6 +202,9 @@ def _is_tag(loc: tuple[str | int, ...], i: int) -> bool:
         i == 1
         and loc[0] in ("observation", "spec")
         and loc[1] in (*OBSERVATION_TYPES, "path", "inline")
+    ) or (
+        (i == 1 and loc[0] == "start" and loc[1] in START_TAGS)
+        or (i == 2 and loc[0] == "labels" and loc[2] in LABEL_TAGS)
     )
 
 

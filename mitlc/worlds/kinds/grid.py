@@ -1,5 +1,6 @@
 """The grid kind: a world file with ``grid:`` (and no ``robots:``), a single robot on a grid
-MDP or POMDP (:mod:`mitlc.worlds.grid` is its geometry and models)."""
+MDP or POMDP (:mod:`mitlc.worlds.grid` is its geometry and models; its drawn starts and
+uncertain labels are :mod:`mitlc.worlds.uncertain`'s)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from pydantic import ValidationError
 
 from mitlc.worlds.grid import GridMap, Layout, check, local_pattern, noisy_cell, transitions
 from mitlc.worlds.model import Observations, World
-from mitlc.worlds.schema import LocalPattern, WorldFile
+from mitlc.worlds.schema import LocalPattern, WorldFile, label_cells
 from mitlc.worlds.source import (
     Source,
     WorldError,
@@ -22,6 +22,7 @@ from mitlc.worlds.source import (
     task_of,
     world_costs,
 )
+from mitlc.worlds.uncertain import label_letters, start_cells, start_of
 
 
 def claims(data: Mapping[str, Any]) -> bool:
@@ -73,15 +74,14 @@ class GridDeclaration:
         path, source, world, layout = self.path, self.source, self.file, self.layout
         text, spec_source, propositions = task_of(world, path, source, spec)
         cells = layout.cells()
-        labelled = {p: set(world.labels.get(p, ())) for p in propositions}
-        missing = [p for p in propositions if not labelled[p]]
+        missing = [p for p in propositions if not label_cells(world.labels.get(p, []))[0]]
         told = (text, spec_source)
         require_labelled(path, source, told, missing, world.labels, "labels no cell")
         costs, propositions = world_costs(world, path, source, propositions, world.actions)
-        labelled = {p: set(world.labels.get(p, ())) for p in propositions}
-        letters = [
-            sum(1 << i for i, p in enumerate(propositions) if cell in labelled[p]) for cell in cells
-        ]
+        states = label_letters(cells, world.labels, propositions)
+        starts = start_cells(layout, world.start)
+        index = {cell: c for c, cell in enumerate(cells)}
+        start, distribution = start_of(states.starts([(index[c], p) for c, p in starts]))
         observations: Observations | None = None
         if isinstance(world.observation, LocalPattern):
             observations = local_pattern(layout)
@@ -91,25 +91,27 @@ class GridDeclaration:
             )
         drawing = GridMap(
             layout,
-            tuple((p, tuple(cells)) for p, cells in sorted(world.labels.items())),
-            (world.start,),
+            tuple((p, tuple(label_cells(label)[0])) for p, label in sorted(world.labels.items())),
+            tuple(cell for cell, _ in starts),
         )
+        motion = transitions(layout, world.actions, world.motion)
         return World(
             name=self.name,
             rows=layout.rows,
             cols=layout.cols,
-            cells=cells,
+            cells=tuple(cells[c] for c in states.cell.tolist()),
             actions=tuple(world.actions),
-            start=cells.index(world.start),
-            transitions=transitions(layout, world.actions, world.motion),
+            start=start,
+            start_distribution=distribution,
+            transitions=states.transitions(motion, len(world.actions)),
             propositions=propositions,
-            letters=np.asarray(letters, dtype=np.int64),
+            letters=states.letter,
             spec=text,
             spec_source=spec_source,
             horizon=world.horizon,
             discount=world.discount,
             rewards=world.reward.rewards(),
-            observations=observations,
+            observations=states.observations(observations),
             costs=costs,
             training=dict(world.training),
             drawing=drawing,
