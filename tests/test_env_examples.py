@@ -23,6 +23,7 @@ EXAMPLES = {
     "minigrid-empty.yaml": ("minigrid", ["sb3.steps=256", "sb3.n_steps=32"], 3),
     "highway.yaml": ("highway_env", ["dqn.episodes=2", "dqn.warmup_steps=16"], 2),
     "pointmaze.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
+    "pointmaze-medium.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
 }
 
 

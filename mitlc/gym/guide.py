@@ -8,17 +8,26 @@ last, and evaluates the potential of
 any task state at any such distances. The reach, the env distance past which a label's pull is
 flat, is the one given, or else the largest distance measured at the first position. Where the
 task is decided the potential is 0 (the wrapper says which states those are).
+
+Where the env's occupancy is known (:mod:`mitlc.labels.geodesic`: a maze's ``maze_map``, a
+MiniGrid grid, a plane's obstacles, or one declared), the distances of 2-D regions are
+geodesic, through free space (:mod:`mitlc.labels.occupancy`); the occupancy is read again at
+each reset (a MiniGrid layout changes with the episode).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from mitlc.gym.arguments import TaskWrapperTypeError
 from mitlc.labels import Labeller
 from mitlc.labels.distance import distances
+from mitlc.labels.geodesic import Geodesic, has_region, occupancy_source
+from mitlc.labels.occupancy import Occupancy
 from mitlc.labels.values import Moment
 from mitlc.task.potential import TaskPotential
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
@@ -26,24 +35,78 @@ from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 Found = list[float | None]
 """Per proposition, its distance, ``None`` where it has none."""
 
+OccupancyChoice = Occupancy | Literal["auto", "none"]
+"""The task wrapper's ``occupancy``: a grid, ``"auto"`` (the env's own where it has one) or
+``"none"`` (straight lines)."""
+
+
+class StraightDistanceWarning(UserWarning):
+    """The shaping measures straight lines to the labels' regions: nothing is known of the
+    env's obstacles (no occupancy grid), so the pull may point into walls."""
+
+
+def geodesic_of(
+    env: Any, labels: Any, occupancy: OccupancyChoice, stacklevel: int = 4
+) -> Geodesic | None:
+    """The geodesic distances of the ``labels`` on ``env`` (``env.unwrapped``): over the
+    occupancy given, or the env's own (``"auto"``, :func:`mitlc.labels.geodesic.occupancy_source`);
+    ``None`` with ``"none"``, or where nothing is known, which is warned about once
+    (:class:`StraightDistanceWarning`) if some label has a 2-D region."""
+    if not (isinstance(occupancy, Occupancy) or occupancy in ("auto", "none")):
+        raise TaskWrapperTypeError(
+            f"occupancy: expected an Occupancy, 'auto' or 'none', got {occupancy!r}"
+        )
+    if isinstance(occupancy, str) and occupancy == "none":
+        return None
+    declared = occupancy if isinstance(occupancy, Occupancy) else None
+    source = occupancy_source(env, declared)
+    if source is not None:
+        return Geodesic(source)
+    labeller = labels if isinstance(labels, Labeller) else getattr(labels, "labeller", None)
+    if isinstance(labeller, Labeller) and has_region(labeller.forms):
+        warnings.warn(
+            "shaping: the labels' distances are straight lines (no occupancy grid is known for "
+            f"{type(env).__name__}; declare one with occupancy: in the world file)",
+            StraightDistanceWarning,
+            stacklevel=stacklevel,
+        )
+    return None
+
 
 class TaskGuide:
     """The potential's state on an env: the reach and the distances of the last positions."""
 
-    def __init__(self, shaping: TaskPotential, propositions: Sequence[str], reach: float) -> None:
-        """``reach`` 0: the largest distance measured at the first position."""
+    def __init__(
+        self,
+        shaping: TaskPotential,
+        propositions: Sequence[str],
+        reach: float,
+        geodesic: Geodesic | None = None,
+        env: Any = None,
+    ) -> None:
+        """``reach`` 0: the largest distance measured at the first position; ``geodesic``:
+        the env's occupancy (``None``: straight lines), read from ``env`` (``env.unwrapped``)
+        at each reset."""
         self.shaping, self.propositions = shaping, tuple(propositions)
         self.reach = float(reach)
+        self.geodesic, self._env = geodesic, env
         self.now: Found = []
         """The distances of the position now."""
 
-    def measure(self, labels: Any, obs: Any, info: Mapping[str, Any], moment: Moment) -> None:
-        """Measure a position newly reached (its distances become :attr:`now`); the first sets
-        the reach, where none was given."""
+    def measure(
+        self, labels: Any, obs: Any, info: Mapping[str, Any], moment: Moment, reset: bool = False
+    ) -> None:
+        """Measure a position newly reached (its distances become :attr:`now`; ``reset``: the
+        position a reset gives, where the occupancy is read again); the first sets the reach,
+        where none was given."""
+        geodesic = self.geodesic
+        if geodesic is not None and (reset or geodesic.occupancy is None):
+            geodesic.refresh(self._env)
         if isinstance(labels, Labeller):
-            found = distances(labels, self.propositions, obs, info, moment)
+            found = distances(labels, self.propositions, obs, info, moment, geodesic)
         elif hasattr(labels, "distances"):  # labels read elsewhere than obs (a plane's)
-            found = labels.distances(self.propositions, obs, info, moment)
+            more = {} if geodesic is None else {"geodesic": geodesic}
+            found = labels.distances(self.propositions, obs, info, moment, **more)
         else:
             found = []
         if found and not self.reach:

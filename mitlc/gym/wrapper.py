@@ -67,7 +67,10 @@ plumbing between the monitor and the environment:
   vector env's ``final_info`` carries the mask of the state an episode ended in). Made with
   ``potential=REACH``: ``potential`` (the task's shaping potential now), ``distances`` and
   ``distances_left`` (how far the positions reached and left are from each proposition;
-  :class:`mitlc.gym.guide.TaskGuide` keeps them).
+  :class:`mitlc.gym.guide.TaskGuide` keeps them): through free space where the env's occupancy
+  is known (``occupancy``: ``"auto"`` reads a maze's ``maze_map``, a MiniGrid grid, a plane's
+  obstacles, :mod:`mitlc.labels.geodesic`; or a declared grid), straight lines elsewhere, warned
+  about once (:class:`~mitlc.gym.guide.StraightDistanceWarning`).
 
 ``gymnasium.make("mitlc/Task-v0", env_id=..., env_kwargs=..., spec=..., labels=...,
 horizon=...)`` builds the inner env by id and wraps it.
@@ -92,7 +95,7 @@ from mitlc.gym.arguments import (
     task_of,
     task_rewards,
 )
-from mitlc.gym.guide import TaskGuide
+from mitlc.gym.guide import OccupancyChoice, TaskGuide, geodesic_of
 from mitlc.gym.parts import TaskObservation, data_only, time_limit
 from mitlc.gym.reading import LetterTaker, run_out
 from mitlc.labels import LabelFunction, Labels, as_labels
@@ -136,6 +139,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         env_end: EnvEnd = "auto",
         task_obs: TaskObs = "state",
         potential: float | None = None,
+        occupancy: OccupancyChoice = "auto",
     ) -> None:
         """Wrap ``env`` with the task ``spec`` (a formula's text, or an automaton), read through
         ``labels``. ``max_automaton_states`` (and ``max_jumps``, default 0) size a lazy
@@ -145,12 +149,13 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         env distance at which a label's pull is flat; 0: the largest at the first reset)
         ``info["potential"]`` is the task's shaping potential (module docstring), and
         ``info["distances"]`` / ``info["distances_left"]`` how far the positions reached and
-        left are from each proposition (:meth:`potential_at` reads them for any task state)."""
+        left are from each proposition (:meth:`potential_at` reads them for any task state),
+        measured through the free cells of ``occupancy`` (module docstring)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
-            env_end=env_end, task_obs=task_obs, potential=potential,
+            env_end=env_end, task_obs=task_obs, potential=potential, occupancy=occupancy,
         )  # fmt: skip
         options = dict(
             rewards=rewards, horizon=horizon, reward_mode=reward_mode, flatten=flatten,
@@ -193,11 +198,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._env_obs: Any = None
         self._env_info: dict[str, Any] = {}
         shaping = shaping_of(automaton, potential)
-        self._guide = (
-            None
-            if shaping is None
-            else TaskGuide(shaping, automaton.propositions, float(potential or 0.0))
-        )
+        self._guide = None
+        if shaping is not None:
+            geodesic = geodesic_of(env.unwrapped, self.labels, occupancy)
+            self._guide = TaskGuide(shaping, automaton.propositions, float(potential or 0.0),
+                                    geodesic, env.unwrapped)  # fmt: skip
 
     def _warn_cut(self, what: str) -> None:
         if not self._cut_warned:
@@ -459,7 +464,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         self._letter = self._letters.take(obs, info, moment)
         self.held |= self._letter
         if self._guide is not None:
-            self._guide.measure(self.labels, obs, info, moment)
+            self._guide.measure(self.labels, obs, info, moment, reset=reward is None)
 
     def _check_capacity(self, q: int) -> None:
         """A lazy automaton's new states must fit the spaces declared for it."""

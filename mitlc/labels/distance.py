@@ -16,6 +16,12 @@ from the ``from`` position to the ``to`` position, both read from the env or its
 Other forms (a set of discrete observations, a truthy test, an event, a value that cannot be
 read) have none: ``None``. :func:`distances` gives, per proposition, the least distance among
 its forms that have one (``None`` where none has).
+
+**Through free space.** Given a :class:`~mitlc.labels.geodesic.Geodesic` (an occupancy grid of
+the env: a maze's walls, a MiniGrid grid, a plane's obstacles, a declared grid), a form over a
+2-D position (a box, a disc, a pair's ``equals``, a guide) measures the geodesic distance
+around the obstacles instead (:mod:`mitlc.labels.occupancy`), never less than the straight
+one. This is the labels' distance for shaping only; whether a form holds is unchanged.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from mitlc.labels.forms import Form, Guided, InBox, InDisc, Labeller, obs_part
+from mitlc.labels.geodesic import Geodesic
 from mitlc.labels.values import MISSING, NO_MOMENT, Bound, Equals, Moment, Region, Value, vector
 
 
@@ -47,7 +54,9 @@ def _region(region: Region, value: Any) -> float | None:
     return _to_box(x, region.low, region.high)
 
 
-def _value(form: Value, obs: Any, info: Mapping[str, Any], moment: Moment) -> float | None:
+def _value(
+    form: Value, obs: Any, info: Mapping[str, Any], moment: Moment, geodesic: Geodesic | None
+) -> float | None:
     test = form.test
     if not isinstance(test, Region | Equals | Bound):
         return None
@@ -55,7 +64,10 @@ def _value(form: Value, obs: Any, info: Mapping[str, Any], moment: Moment) -> fl
     if value is MISSING:
         return None
     if isinstance(test, Region):
-        return _region(test, value)
+        straight = _region(test, value)
+        if geodesic is None or straight is None:
+            return straight
+        return geodesic.form_distance(form, test.point(value), straight)
     if isinstance(test, Bound):
         x = vector(value)
         if x is None or x.size != 1:
@@ -71,29 +83,44 @@ def _value(form: Value, obs: Any, info: Mapping[str, Any], moment: Moment) -> fl
     found = vector(value)
     if target is None or found is None or target.shape != found.shape:
         return None
-    return float(np.sqrt(np.sum((found - target) ** 2)))
+    straight = float(np.sqrt(np.sum((found - target) ** 2)))
+    return straight if geodesic is None else geodesic.form_distance(form, found, straight)
+
+
+def _guided(
+    form: Guided, obs: Any, info: Mapping[str, Any], moment: Moment, geodesic: Geodesic | None
+) -> float | None:
+    if form.form.holds(obs, info, moment):
+        return 0.0
+    origin = vector(form.origin.read(obs, info, moment))
+    target = vector(form.target.read(obs, info, moment))
+    if origin is None or target is None or origin.shape != target.shape:
+        return None
+    straight = float(np.sqrt(np.sum((origin - target) ** 2)))
+    field = None if geodesic is None or straight == 0.0 else geodesic.toward(target)
+    return straight if field is None else max(field.at(origin), straight)
 
 
 def form_distance(
-    form: Form, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT
+    form: Form,
+    obs: Any,
+    info: Mapping[str, Any],
+    moment: Moment = NO_MOMENT,
+    geodesic: Geodesic | None = None,
 ) -> float | None:
-    """How far ``(obs, info)`` at ``moment`` is from where ``form`` holds (module docstring)."""
+    """How far ``(obs, info)`` at ``moment`` is from where ``form`` holds (module docstring),
+    through free space where ``geodesic`` knows the env's occupancy."""
     if isinstance(form, Guided):
-        if form.form.holds(obs, info, moment):
-            return 0.0
-        origin = vector(form.origin.read(obs, info, moment))
-        target = vector(form.target.read(obs, info, moment))
-        if origin is None or target is None or origin.shape != target.shape:
-            return None
-        return float(np.sqrt(np.sum((origin - target) ** 2)))
+        return _guided(form, obs, info, moment, geodesic)
     if isinstance(form, Value):
-        return _value(form, obs, info, moment)
-    if isinstance(form, InBox):
+        return _value(form, obs, info, moment, geodesic)
+    if isinstance(form, InBox | InDisc):
         x = np.asarray(obs_part(obs, form.key), dtype=np.float64)[list(form.index)]
-        return _to_box(x, form.low, form.high)
-    if isinstance(form, InDisc):
-        x = np.asarray(obs_part(obs, form.key), dtype=np.float64)[list(form.index)]
-        return _to_disc(x, form.center, form.radius)
+        if isinstance(form, InBox):
+            straight = _to_box(x, form.low, form.high)
+        else:
+            straight = _to_disc(x, form.center, form.radius)
+        return straight if geodesic is None else geodesic.form_distance(form, x, straight)
     return None
 
 
@@ -103,16 +130,17 @@ def distances(
     obs: Any,
     info: Mapping[str, Any],
     moment: Moment = NO_MOMENT,
+    geodesic: Geodesic | None = None,
 ) -> list[float | None]:
     """Per proposition of ``propositions``, the least distance among its forms that have one
-    (``None`` where none has)."""
+    (``None`` where none has); through free space where ``geodesic`` is given."""
     index = {p: i for i, p in enumerate(labeller.propositions)}
     found: list[float | None] = []
     for p in propositions:
         known = [
             d
             for form in labeller.forms[index[p]]
-            if (d := form_distance(form, obs, info, moment)) is not None
+            if (d := form_distance(form, obs, info, moment, geodesic)) is not None
         ]
         found.append(min(known) if known else None)
     return found

@@ -21,9 +21,12 @@ The potential of a position ``s`` (the env's) in automaton state ``q`` is
 * ``e(s, q)``: the least distance from ``s`` to where a proposition that *advances* ``q``
   holds (its letter alone leads elsewhere than the empty letter does, and no farther from
   acceptance, or marks a set the empty letter does not): in a finite
-  world the fewest steps (:func:`world_distances`), in an env the Euclidean distance of the
-  labels' regions and positions (:mod:`mitlc.labels.distance`); 0 where no such proposition
-  has a distance; ``reach`` scales it (:func:`pull`; beyond it, the pull is flat);
+  world the fewest steps (:func:`world_distances`), in an env the distance of the labels'
+  regions and positions (:mod:`mitlc.labels.distance`): through free space where the env's
+  occupancy is known (a maze's walls, a MiniGrid grid, a plane's obstacles, a declared grid:
+  the wavefront distance of :mod:`mitlc.labels.occupancy`), a straight line elsewhere; 0
+  where no such proposition has a distance; ``reach`` scales it (:func:`pull`; beyond it, the
+  pull is flat);
 * ``u(q)``: the urgency, the largest of ``q``'s clocks over its bound (the clock view,
   :mod:`mitlc.automata.clocks`): the share of the current deadline already spent.
 

@@ -51,6 +51,9 @@ class EnvTask:
     """The world file's folder, from which no module is imported."""
     training: Mapping[str, Any] = field(default_factory=dict)
     """The file's ``training`` settings."""
+    occupancy: Any = None
+    """The file's ``occupancy:`` grid (a :class:`mitlc.labels.occupancy.Occupancy`; ``None``:
+    the env's own where it has one), for the shaping's distances."""
     _spare: list[Any] = field(default_factory=list, compare=False, repr=False)
     """The env made to check the file (at most one), handed to the first :meth:`task_env`."""
 
@@ -69,6 +72,8 @@ class EnvTask:
         from mitlc.gym import TaskWrapper
 
         env = self._spare.pop() if self._spare else gym_world.make_env(self.env, self.folder)
+        if self.occupancy is not None:
+            options.setdefault("occupancy", self.occupancy)
         return TaskWrapper(
             env,
             automaton,

@@ -104,7 +104,8 @@ class NotFiniteError(GymWorldError):
 def check_file(file: EnvWorldFile) -> Found:
     """What is wrong with an env world file, short of making the env: the ``kwargs`` values,
     repeated action names and observations, and each decoding (as many fields as radices,
-    fields named once, ``where`` naming known fields with values in range)."""
+    fields named once, ``where`` naming known fields with values in range), and the rows of an
+    ``occupancy:`` grid."""
     found: Found = []
     for key, value in file.env.kwargs.items():
         _yaml_value(value, ("env", "kwargs", key), found)
@@ -121,7 +122,20 @@ def check_file(file: EnvWorldFile) -> Found:
             _check_decoding((*where, "decoded"), label.decoded, found)
         else:
             found.extend(form_problems({name: label}, None))
+    if file.occupancy is not None:
+        _check_occupancy(file.occupancy.cells, found)
     return found
+
+
+def _check_occupancy(cells: Sequence[Sequence[int]], found: Found) -> None:
+    """The rows of an ``occupancy:`` grid: each as long as the first, at most
+    :data:`~mitlc.limits.MAX_GRID_CELLS` cells."""
+    for i, row in enumerate(cells):
+        if len(row) != len(cells[0]):
+            found.append((("occupancy", "cells", i), f"a row of {len(row)} cells, where the "
+                          f"first has {len(cells[0])}: the rows must be as long"))  # fmt: skip
+    if len(cells) * len(cells[0]) > MAX_GRID_CELLS:
+        found.append((("occupancy", "cells"), f"more than {MAX_GRID_CELLS} cells"))
 
 
 def declarations(labels: Mapping[str, Any]) -> dict[str, Any]:

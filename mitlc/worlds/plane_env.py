@@ -31,6 +31,7 @@ from mitlc.automata import translate
 from mitlc.gym.wrapper import TaskWrapper
 from mitlc.labels import Labeller, LetterReader, compile_labels
 from mitlc.labels.distance import distances
+from mitlc.labels.geodesic import Geodesic
 from mitlc.labels.values import Moment
 from mitlc.syntax import parse
 from mitlc.worlds.plane import PlaneWorld, Vec
@@ -148,10 +149,16 @@ class PositionLabels:
         return PositionLetters(self.labeller.letter_reader(propositions))
 
     def distances(
-        self, propositions: Sequence[str], obs: Any, info: Mapping[str, Any], moment: Moment
+        self,
+        propositions: Sequence[str],
+        obs: Any,
+        info: Mapping[str, Any],
+        moment: Moment,
+        geodesic: Geodesic | None = None,
     ) -> list[float | None]:
-        """How far the true position is from each region (:mod:`mitlc.labels.distance`)."""
-        return distances(self.labeller, propositions, info["position"], info, moment)
+        """How far the true position is from each region (:mod:`mitlc.labels.distance`;
+        around the obstacles with ``geodesic``)."""
+        return distances(self.labeller, propositions, info["position"], info, moment, geodesic)
 
 
 def plane_task(

@@ -732,6 +732,21 @@ EnvLabel = Annotated[
 ]
 
 
+class OccupancySection(_Model):
+    """Which cells of a grid over the env's positions are free, for the shaping's distances
+    through free space (mitlc/labels/occupancy.py)."""
+
+    cells: list[list[Literal[0, 1]]] = Field(
+        min_length=1,
+        description="Rows of 0 (free) and 1 (blocked), the top row first as a map prints it, "
+        "each as long as the first.",
+    )
+    cell_size: PositiveNumber = Field(description="The side of a cell, in the env's units.")
+    origin: tuple[Number, Number] = Field(
+        description="[x, y]: the position of the map's lower-left corner (y points up)."
+    )
+
+
 class EnvWorldFile(TaskFields):
     """A world file naming a gymnasium environment and its task: a finite one (a transition
     table) is checked and learned as a world; any other is learned through the task
@@ -760,6 +775,13 @@ class EnvWorldFile(TaskFields):
         "must be labelled.",
     )
     costs: CostsSection | None = Field(default=None, description=COSTS_DESCRIPTION)
+    occupancy: OccupancySection | None = Field(
+        default=None,
+        description="For shaping: {cells: [[0, 1, ...], ...], cell_size: ..., origin: [x, y]}, "
+        "the free and blocked cells of the positions the labels' regions are over, so that "
+        "their distances go around the obstacles (default: the env's own map where mitlc "
+        "reads one: a maze's maze_map, a MiniGrid grid; else straight lines).",
+    )
 
 
 ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
@@ -774,6 +796,7 @@ ENV_MODELS: dict[tuple[str, ...], type[BaseModel]] = {
     ("costs",): CostsSection,
     ("costs", "propositions", "*"): PropositionCost,
     ("costs", "transitions", "*"): TransitionRule,
+    ("occupancy",): OccupancySection,
 }
 """The model at each place of an env world file, by pydantic's error location (union tags
 included, a label's name as ``*``)."""

@@ -17,6 +17,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from mitlc.labels.geodesic import declared_occupancy
 from mitlc.worlds import gym_world
 from mitlc.worlds.costs import action_problems
 from mitlc.worlds.env_make import quiet
@@ -171,6 +172,7 @@ class EnvDeclaration:
             rewards=file.reward.rewards(),
             folder=path.parent,
             training=dict(file.training),
+            occupancy=declared_occupancy(file.occupancy),
         )
         try:
             found = gym_world.form_problems(file.labels, env.observation_space)
