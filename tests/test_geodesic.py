@@ -254,3 +254,21 @@ def test_a_plane_world_measures_around_its_obstacles() -> None:
     # straight 0.5; the grid's own error is within a cell (0.1 m here)
     assert 0.5 <= info["distances"][world.propositions.index("a")] <= 0.5 + 0.1
     env.close()
+
+
+def test_only_the_forms_over_the_maps_positions_are_geodesic() -> None:
+    env = _point_maze()
+    labels = {
+        "fast": {"box": {"key": "observation", "index": [2, 3], "low": [1, 1], "high": [2, 2]}},
+        "b": {"disc": {"key": "achieved_goal", "index": [0, 1], "center": [2.5, -2.5],
+                       "radius": 0.4}},
+    }  # fmt: skip
+    wrapper = TaskWrapper(env, "F[0,50] (fast | b)", labels, horizon=60, potential=0.0)
+    obs, info = wrapper.reset(seed=0, options={"reset_cell": np.array([1, 1])})  # top-left
+    at = {p: info["distances"][i] for i, p in enumerate(wrapper.automaton.propositions)}
+    velocity = obs["env"]["observation"][2:]
+    straight = math.hypot(*np.maximum(np.array([1.0, 1.0]) - velocity, 0.0))
+    assert at["fast"] == pytest.approx(straight)  # a velocity: straight
+    ball = obs["env"]["achieved_goal"]
+    assert at["b"] > math.hypot(*(ball - [2.5, -2.5])) - 0.4 + 0.7  # around the walls
+    wrapper.close()

@@ -97,7 +97,7 @@ def _guided(
     if origin is None or target is None or origin.shape != target.shape:
         return None
     straight = float(np.sqrt(np.sum((origin - target) ** 2)))
-    field = None if geodesic is None or straight == 0.0 else geodesic.toward(target)
+    field = None if geodesic is None or straight == 0.0 else geodesic.toward(form, target)
     return straight if field is None else max(field.at(origin), straight)
 
 

@@ -13,28 +13,33 @@ over it (:mod:`mitlc.labels.occupancy`), for the shaping potential.
   corner is ``(-x_map_center, -y_map_center)``); each maze cell is cut into
   :data:`MAZE_REFINE` x :data:`MAZE_REFINE` cells (the walls are whole maze cells, so this is
   exact); 8-connected; positions are the ball's (or the ant's) ``(x, y)``, what ``achieved_goal``
-  holds;
+  holds: the geodesic applies to a ``box`` or ``disc`` over ``achieved_goal`` (or
+  ``desired_goal``) at ``index: [0, 1]``;
 * **MiniGrid**: ``env.unwrapped.grid``, read again at each reset (DoorKey moves its wall every
   episode): a wall or lava blocks its cell; doors (open, closed or locked: the task is to go
   through them), keys, balls, boxes and goals are free; cell ``(x, y)`` of ``agent_pos`` is the
-  unit square centred on it; 4-connected, as the agent moves;
+  unit square centred on it; 4-connected, as the agent moves; the geodesic applies to the forms
+  that read ``attr: agent_pos`` (an ``equals``, a ``box``) and to guides from it;
 * **mitlc's plane worlds** (:class:`mitlc.worlds.plane_env.PlaneEnv`): the room, its obstacles
   rasterised on cells of :data:`PLANE_RESOLUTION` of the room's shorter side (a cell is
-  blocked where an obstacle's interior meets it); 8-connected.
+  blocked where an obstacle's interior meets it); 8-connected; every label (each reads the
+  position).
 
 A map with no blocked cell (a plane world without obstacles) measures straight lines, which
 are then exact. Anything else has no occupancy: the distance stays the straight line (the
 task wrapper says so once, :class:`mitlc.gym.guide.StraightDistanceWarning`).
 
-The geodesic applies to a form over a 2-D position whose region lies in the map (its box or
+The geodesic applies to a form over a 2-D position that reads the positions the map is over
+(above; with a declared grid, every such form) and whose region lies in the map (its box or
 disc meets a free cell): ``box`` and ``disc`` (over the observation or a value), a value's
 ``equals`` of a pair, and a guide's ``toward`` (the field of its target, per target cell).
+Every other form keeps the straight line.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from typing import Any
 
@@ -42,7 +47,7 @@ import numpy as np
 
 from mitlc.labels.forms import Form, Guided, InBox, InDisc
 from mitlc.labels.occupancy import DistanceField, Occupancy, Target, as_target
-from mitlc.labels.values import Equals, Region, Value, vector
+from mitlc.labels.values import AttrPath, Equals, Region, Value, vector
 
 MAZE_REFINE = 4
 """Cells per side of a gymnasium-robotics maze cell (0.25 m at the default scaling of 1)."""
@@ -93,12 +98,39 @@ def plane_occupancy(world: Any) -> Occupancy:
     return Occupancy(blocked, size, (0.0, 0.0), source="plane obstacles")
 
 
+def reads_maze_position(form: Form) -> bool:
+    """Whether a form reads a maze's position: a ``box`` or ``disc`` over ``achieved_goal``
+    (or ``desired_goal``) at ``[0, 1]``."""
+    return (
+        isinstance(form, InBox | InDisc)
+        and form.key in ("achieved_goal", "desired_goal")
+        and tuple(form.index) == (0, 1)
+    )
+
+
+def reads_agent_pos(form: Form) -> bool:
+    """Whether a form reads MiniGrid's ``agent_pos`` (a value's test, or a guide's origin)."""
+    source = form.origin if isinstance(form, Guided) else getattr(form, "source", None)
+    return isinstance(source, AttrPath) and source.steps == ("agent_pos",)
+
+
+def reads_anything(form: Form) -> bool:
+    """Every 2-D form reads the positions of the grid (a plane's, a declared one)."""
+    return True
+
+
 class OccupancySource:
     """Reads an env's occupancy: once (a maze, a plane, a declared grid) or at every reset (a
-    MiniGrid grid)."""
+    MiniGrid grid); ``reads`` says which forms read the positions it maps (the others keep the
+    straight line)."""
 
-    def __init__(self, name: str, occupancy: Occupancy | None = None) -> None:
-        self.name, self.fixed = name, occupancy
+    def __init__(
+        self,
+        name: str,
+        occupancy: Occupancy | None = None,
+        reads: Callable[[Form], bool] = reads_anything,
+    ) -> None:
+        self.name, self.fixed, self.reads = name, occupancy, reads
 
     def read(self, unwrapped: Any) -> Occupancy | None:
         """The occupancy now."""
@@ -115,10 +147,10 @@ def occupancy_source(unwrapped: Any, declared: Occupancy | None = None) -> Occup
         return OccupancySource(declared.source, declared)
     maze = getattr(unwrapped, "maze", None)
     if all(hasattr(maze, a) for a in ("maze_map", "maze_size_scaling", "x_map_center")):
-        return OccupancySource("maze_map", maze_occupancy(maze))
+        return OccupancySource("maze_map", maze_occupancy(maze), reads_maze_position)
     minigrid = sys.modules.get("minigrid.minigrid_env")
     if minigrid is not None and isinstance(unwrapped, minigrid.MiniGridEnv):
-        return OccupancySource("MiniGrid grid")
+        return OccupancySource("MiniGrid grid", reads=reads_agent_pos)
     world = getattr(unwrapped, "world", None)
     if all(hasattr(world, a) for a in ("obstacles", "width", "height", "free")):
         return OccupancySource("plane obstacles", plane_occupancy(world))
@@ -159,16 +191,16 @@ class Geodesic:
             return None
         found = self._fields.get(id(form))
         if found is None or found[0] is not form:
-            target = _target(form)
+            target = _target(form) if self.source.reads(form) else None
             made = None if target is None else self.occupancy.field(target)
             found = (form, made if made is not None and made.reachable else None)
             self._fields[id(form)] = found
         return found[1]
 
-    def toward(self, target: np.ndarray[Any, Any]) -> DistanceField | None:
+    def toward(self, form: Guided, target: np.ndarray[Any, Any]) -> DistanceField | None:
         """The field of a guide's target position (per target cell)."""
         occupancy = self.occupancy
-        if occupancy is None or target.size != 2 or not self._walled:
+        if occupancy is None or target.size != 2 or not self._walled or not self.source.reads(form):
             return None
         cell = occupancy.cell_of(target)
         found = self._guided.get(cell)
