@@ -252,6 +252,41 @@ def test_what_the_agent_observes(tmp_path: Path) -> None:
     assert pomdp.transitions.num_rows == 4 * pomdp.num_actions
 
 
+POMDP = """\
+grid: {rows: 2, cols: 3}
+labels:
+  a: {cells: [[0, 2]], probability: 0.5}
+start: START
+motion: {intended: 0.8, sideways: 0.1}
+observation: {type: noisy-cell, correct: 0.7}
+spec: {formula: "F[0,4] a"}
+horizon: 6
+"""
+
+
+def test_the_pomdp_bounds_start_from_the_distribution(tmp_path: Path) -> None:
+    """From (0, 2) alone a staying robot draws a five times: 1 - 1/2^5 = 31/32, whatever it
+    observes. From every cell, the observation-based policy's exact success lies below the
+    fully observable optimum and inside Storm's belief bounds (all from the same start
+    distribution)."""
+    from mitlc.check.observed import observed_bound
+    from mitlc.check.pomdp import pomdp_bounds
+
+    one = load_world(_write(tmp_path, "one", POMDP.replace("START", "[0, 2]")))
+    automaton = translate(parse(one.spec))
+    report = check(one, automaton)
+    assert report.pmax_horizon == pytest.approx(31 / 32)
+    assert observed_bound(one, report.product).value == pytest.approx(31 / 32)
+    world = load_world(_write(tmp_path, "every", POMDP.replace("START", "uniform")))
+    report = check(world, automaton)
+    observed = observed_bound(world, report.product).value
+    assert 0.5 < observed < report.pmax_horizon < 1.0
+    bounds = pomdp_bounds(world, automaton)
+    if bounds is None:
+        pytest.skip("stormpy.pomdp is not installed")
+    assert bounds["lower"] - 1e-9 <= observed <= bounds["upper"] + 1e-9, bounds
+
+
 def test_an_uncertain_label_nothing_reads_adds_no_state(tmp_path: Path) -> None:
     text = LINE3.replace("labels:\n", "labels:\n  b: [[0, 0]]\n").replace("F[0,2] a", "F b")
     text = text.replace("a: {cells", "c: {cells")
@@ -322,3 +357,17 @@ def test_a_good_base_loads(tmp_path: Path) -> None:
     world = load_world(_write(tmp_path, "good", text))
     assert world.num_states == 5 and len(world.start_distribution) == 5
     assert world.start == 0  # every cell as probable: the lowest state
+
+
+def test_the_json_schema_takes_every_form() -> None:
+    from mitlc.worlds import world_json_schema
+    from tests.test_worlds import schema_errors
+
+    schema = world_json_schema()
+    path = ROOT / "specs" / "paper" / "case2-random-start.yaml"
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    assert schema_errors(data, schema, schema) == []
+    for start in ([1, 2], [[1, 2], [2, 2]], {"cells": [[1, 2]], "weights": [2]}):
+        assert schema_errors({**data, "start": start}, schema, schema) == []
+    labels = {"a": [[6, 3]], "b": {"cells": [[3, 8]]}}
+    assert schema_errors({**data, "labels": labels}, schema, schema) == []

@@ -1,6 +1,7 @@
 """The validated world: an MDP (or a POMDP) on a grid, as plain immutable arrays.
 
-States are the free cells of the grid, numbered row by row (``cells[s] = (row, col)``). The
+States are the free cells of the grid, numbered row by row (``cells[s] = (row, col)``; a cell
+with uncertain labels has a state per outcome of them, :mod:`mitlc.worlds.uncertain`). The
 transition relation is sparse, in compressed rows: the successors of state ``s`` under action
 ``a`` are ``next_states[indptr[r]:indptr[r + 1]]`` with probabilities ``probs[...]``, where
 ``r = s * num_actions + a``. Labels are observable: ``letters[s]`` is the set of propositions
@@ -97,7 +98,9 @@ class World:
     cells: tuple[tuple[int, int], ...]
     """``cells[s]``: the cell ``(row, col)`` of state ``s``; in a team world, the robots' cells
     as one flat tuple ``(r0, c0, r1, c1, ...)`` (:attr:`team` splits them; the annotation stays
-    the one-robot pair's until the callers that draw cells take joint ones)."""
+    the one-robot pair's until the callers that draw cells take joint ones). Several states
+    share a cell where the state carries more than the cell: a team's swap flag, or the
+    outcome of a grid cell's uncertain labels (:mod:`mitlc.worlds.uncertain`)."""
     actions: tuple[str, ...]
     start: int
     transitions: Sparse
@@ -115,10 +118,12 @@ class World:
     observations: Observations | None = None
     """``None`` for an MDP."""
     start_distribution: tuple[tuple[int, float], ...] = ()
-    """Where an episode starts: empty for the certain start ``start`` (grid worlds, and any
-    world with a single start state); otherwise the ``(state, probability)`` pairs of positive
-    probability, sorted by state, with ``start`` the most probable of them (the lowest id on
-    ties). A world made from a gymnasium env takes it from ``initial_state_distrib``."""
+    """Where an episode starts: empty for the certain start ``start`` (any world with a single
+    start state); otherwise the ``(state, probability)`` pairs of positive probability, sorted
+    by state, with ``start`` the most probable of them (the lowest id on ties). A world made
+    from a gymnasium env takes it from ``initial_state_distrib``; a grid world from its
+    ``start:`` (a list of cells, weighted cells or ``uniform``) times the outcomes of the start
+    cells' uncertain labels (:mod:`mitlc.worlds.uncertain`)."""
     costs: Costs | None = None
     """What the steps of an episode cost beside its success (``costs:``; ``None``: none), read
     through :func:`mitlc.product.costs.product_costs`."""
@@ -147,7 +152,8 @@ class World:
 
     @property
     def num_states(self) -> int:
-        """The number of free cells."""
+        """The number of states (of a grid world: its free cells, with the outcomes of their
+        uncertain labels)."""
         return len(self.cells)
 
     @property
@@ -161,5 +167,5 @@ class World:
         return self.observations is not None
 
     def state_of(self, cell: tuple[int, int]) -> int:
-        """The state of a free cell."""
+        """The (first) state of a free cell."""
         return self.cells.index(cell)
