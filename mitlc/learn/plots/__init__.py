@@ -99,7 +99,7 @@ def _trajectories(
     """The PNG of ``count`` greedy rollouts on the world's map (and a team world's GIF of the
     first), as (file name, bytes); none where the world has no map (a gymnasium env, finite or
     not)."""
-    formula = textwrap.fill(setting.automaton.formula, 110)
+    formula = textwrap.fill(setting.automaton.formula, 95)
     algo = setting.config.algo
     world = setting.world
     if isinstance(world.drawing, PlaneWorld):  # a room: the world is its own map
