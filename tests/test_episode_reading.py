@@ -5,8 +5,9 @@ windows, the top-level recurrences as rounds). Every path that judges an episode
 automaton instead, through :func:`mitlc.task.rules.success`; here the task monitor (with the
 best epsilon jumps), the gymnasium wrapper, the vectorised simulator, the exact evaluation of a
 policy and the checker's ``pmax_horizon`` are each compared with the reference on **every**
-trace up to length 5 over two propositions, for random formulas of four families (bounded;
-unbounded; requests ``G (a -> F b)``; top-level ``G F β`` conjuncts mixed with deadlines), and
+trace up to length 5 over two propositions, for random formulas of five families (bounded;
+unbounded; requests ``G (a -> F b)``; top-level ``G F β`` conjuncts mixed with deadlines; eventual
+recurrences ``G F (a & F b)`` beside weak ones and requests), and
 the issue-42 reproductions are regression tests. The slow suite does the same with more
 formulas.
 """
@@ -69,6 +70,14 @@ ISSUE_CASES = [  # (formula, trace, success): the reproductions of issue 42
     ("F[2,4] true", ["", "", ""], True),
     ("G (a -> F b)", ["a", "b", "a"], False),
     ("G (a -> F b)", ["a", "b", ""], True),
+    ("G F (a & F b)", ["a", "b", ""], True),  # a round: a, then b (issue 44)
+    ("G F (a & F b)", ["b", "a", ""], False),
+    ("G F (a & F b)", ["a,b"], True),
+    ("G F (a & F b) & G !(a & b)", ["a", "", "b", "a"], True),
+    ("G F (a & X b)", ["a", "a", "a"], False),
+    ("G F (a & X b)", ["a", "b", "a"], True),
+    ("G F (a & G[0,1] b)", ["a,b", "b", ""], False),  # a weak window: read as LTLf
+    ("G F (a & G[0,1] b)", ["", "a,b"], True),
 ]
 
 
@@ -125,9 +134,15 @@ def _family(rng: random.Random, family: str) -> ast.Formula:
         parts = [f"G ({a} -> F {b})", f"G ({a} -> F[0,2] {b})", deadline]
     else:
         parts = [f"G F {a}", f"G F ({a} & !{b})", f"G F {b}", deadline, f"G !({a} & {b})"]
+    if family == "eventual":
+        parts = [f"G F ({a} & F {b})", f"G F ({a} U {b})", f"G F ({a} & X {b})",
+                 f"G (F ({a} & F[1,2] {b}) | F !{a})", f"G F ({a} & G[0,1] {b})",
+                 f"G ({a} -> F {b})", deadline, f"G F {b}"]  # fmt: skip
     chosen = rng.sample(parts, rng.randint(1, len(parts)))
     if family == "recurrences" and not any(p.startswith("G F") for p in chosen):
         chosen.append(f"G F {a}")
+    if family == "eventual" and not any(p.startswith("G F (") for p in chosen):
+        chosen.append(f"G F ({a} & F {b})")
     return parse(" & ".join(f"({p})" for p in chosen))
 
 
@@ -136,14 +151,14 @@ def _formulas(seed: int, count: int) -> Iterator[tuple[ast.Formula, DigitalAutom
     automaton needs epsilon jumps is left to the persistence cases (docs/episodes.md: after a
     jump the episode reads the guess)."""
     rng = random.Random(seed)
-    for family in ("bounded", "unbounded", "requests", "recurrences"):
+    for family in ("bounded", "unbounded", "requests", "recurrences", "eventual"):
         made = 0
         while made < count:
             formula = _family(rng, family)
             if ast.atoms(formula) != ATOMS:
                 continue
             automaton = translate(formula)
-            if automaton.epsilon and family != "recurrences":
+            if automaton.epsilon and family not in ("recurrences", "eventual"):
                 continue
             made += 1
             yield formula, automaton

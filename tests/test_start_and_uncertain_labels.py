@@ -300,7 +300,7 @@ def test_the_shipped_random_start_example_checks() -> None:
     report = check(world, translate(parse(world.spec)))
     assert report.pmax == pytest.approx(1.0)
     assert 0.99 < report.pmax_horizon <= 1.0 + 1e-9
-    assert to_text(parse(world.spec)) == "G (F a & F b)"
+    assert to_text(parse(world.spec)) == "G F (a & F b)"  # read as rounds: 0.0 as LTLf
 
 
 # --- errors ----------------------------------------------------------------------------------

@@ -24,9 +24,10 @@ acceptance sets, which the episode must have seen (:data:`END_HOLDS`: none).
 
 * An initial-component state: its obligation's end value.
 * A recurrence state (``S & C & G χ``, :mod:`mitlc.automata.recurrence`): the end value of
-  ``S``, ``C`` and every pending token (a request of ``G (a -> F b)`` not answered fails), but
-  not of the ``G χ`` themselves, once the sets of the renewing recurrences have been seen:
-  ``G F β`` owes one ``β``, not a ``β`` at the last letter.
+  ``S``, ``C`` and every pending token of a recurrence that is not eventual (a request of
+  ``G (a -> F b)`` not answered fails), but not of the ``G χ`` themselves nor of an eventual
+  recurrence's tokens, once the eventual recurrences' sets have been seen: ``G F β`` owes one
+  ``β`` and ``G F (a & F b)`` one ``a`` then ``b``, not a completion at the last letter.
 * A state of the accepting component (after an epsilon jump), a guess proved by completed
   rounds: its safety part's end value (a deadline still open fails there too), once every set
   has been seen (a round completed); its recurrences' pending tokens are the renewed

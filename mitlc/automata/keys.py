@@ -242,12 +242,13 @@ class Rules:
                 return END_HOLDS
             all_sets = (1 << self.num_sets) - 1
             return holds_after(all_sets) if self.store.end_value(guess.safety) else END_FAILS
-        if not self.store.end_value(self.owed(key)):
-            return END_FAILS
         if key.kind == "recurrence":
             assert self.recurrence is not None
-            return holds_after(self.recurrence.renewing_sets)
-        return END_HOLDS
+            owed = self.recurrence.owed_at_end(self.store, key.forms)
+            if not self.store.end_value(owed):
+                return END_FAILS
+            return holds_after(self.recurrence.round_sets)
+        return END_HOLDS if self.store.end_value(self.owed(key)) else END_FAILS
 
     def surely_live(self, key: Key) -> bool:
         """True for the states :meth:`state` calls satisfied: each loops on itself with every

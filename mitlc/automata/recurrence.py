@@ -16,9 +16,16 @@ A *renewing* ``χ`` (a disjunction of ``F φ`` with ``φ`` propositional, as in 
 ``φ`` and ``χ`` itself on any other, so every pending token is met at the same step, and
 ``G χ`` holds iff such letters come infinitely often. Its set is marked on those letters and
 its ``B`` and ``N`` stay ``true`` (the generalized Büchi automaton of ``G F φ_1 & ... & G F
-φ_n`` with one state, instead of ``3^n``). A finite trace owes one such letter (the episode's
-reading of ``G F φ``): its set must have been seen (:attr:`Recurrence.renewing_sets`,
-:mod:`mitlc.automata.ends`).
+φ_n`` with one state, instead of ``3^n``).
+
+An *eventual* ``χ`` is a disjunction of ``F ψ`` whose ``ψ`` owes only strong obligations (no
+``G`` or ``R`` atom in its closure: ``G F (a & F b)``, ``G F (a U b)``, ``G F (a & X b)``; every
+renewing ``χ`` is one). A finite trace owes one completed ``χ`` (the episode's reading of ``G F
+ψ``, :mod:`mitlc.semantics.episode`): its set must have been seen, and its pending tokens, the
+renewed obligations, are not owed at the end (:attr:`Recurrence.round_sets`,
+:meth:`Recurrence.owed_at_end`, :mod:`mitlc.automata.ends`). The first batch holds the token of
+position 0 alone, so the set is first marked exactly when ``χ`` is met from position 0; a pending
+token of strong obligations fails at the end, so "the set was seen" is the LTLf value of ``χ``.
 """
 
 from __future__ import annotations
@@ -39,14 +46,16 @@ class Recurrence:
     chis: tuple[int, ...]
     renewing: tuple[bool, ...]
     """Per ``chi``: whether it is renewing (module docstring)."""
+    eventual: tuple[bool, ...]
+    """Per ``chi``: whether it is eventual (module docstring; every renewing one is)."""
 
     cosafety_set_needed: bool
     """Whether a co-safety part is owed (then it has the last acceptance set)."""
 
     @property
-    def renewing_sets(self) -> int:
-        """The mask of the renewing recurrences' acceptance sets."""
-        return sum(1 << i for i, renewing in enumerate(self.renewing) if renewing)
+    def round_sets(self) -> int:
+        """The mask of the eventual recurrences' acceptance sets: those a finite trace owes."""
+        return sum(1 << i for i, eventual in enumerate(self.eventual) if eventual)
 
     @property
     def num_sets(self) -> int:
@@ -113,6 +122,17 @@ class Recurrence:
         always = [store.temporal(ALWAYS, 0, INF, chi) for chi in self.chis]
         return store.all_of((*forms, *always))
 
+    def owed_at_end(self, store: TermStore, forms: tuple[int, ...]) -> int:
+        """What a stop in a state owes (module docstring): ``S & C`` and the pending tokens of
+        the recurrences that are not eventual (an unanswered request of ``G (a -> F b)``)."""
+        tokens = [
+            form
+            for i, eventual in enumerate(self.eventual)
+            if not eventual
+            for form in forms[2 + 2 * i : 4 + 2 * i]
+        ]
+        return store.all_of((forms[0], forms[1], *tokens))
+
 
 def _has(store: TermStore, form: int, kinds: tuple[str, ...]) -> bool:
     for atom in closure(store, form):
@@ -148,12 +168,17 @@ def split_recurrence(store: TermStore, root: int) -> Recurrence | None:
         else:
             return None
     rest = store.all_of(cosafety)
-    renewing = tuple(_is_renewing(store, chi) for chi in chis)
-    return Recurrence(store.all_of(safety), rest, tuple(chis), renewing, rest != store.true)
+    renewing = tuple(_is_eventual(store, chi, propositional=True) for chi in chis)
+    eventual = tuple(_is_eventual(store, chi, propositional=False) for chi in chis)
+    return Recurrence(
+        store.all_of(safety), rest, tuple(chis), renewing, eventual, rest != store.true
+    )
 
 
-def _is_renewing(store: TermStore, chi: int) -> bool:
-    """Whether ``chi`` is a disjunction of ``F φ`` with ``φ`` propositional."""
+def _is_eventual(store: TermStore, chi: int, *, propositional: bool) -> bool:
+    """Whether ``chi`` is a disjunction of ``F ψ`` with ``ψ`` propositional (renewing), or
+    else with no ``G`` or ``R`` atom in ``ψ``'s closure (eventual)."""
+    allowed = (LIT,) if propositional else (LIT, EVENTUALLY, UNTIL)
     for cube in store.forms[chi]:
         if len(cube) != 1:
             return False
@@ -161,7 +186,7 @@ def _is_renewing(store: TermStore, chi: int) -> bool:
         kind, lo, hi, operand, _ = store.atoms[atom]
         if kind != EVENTUALLY or lo != 0 or hi != INF:
             return False
-        if any(store.atoms[a][0] != LIT for a in closure(store, operand)):
+        if any(store.atoms[a][0] not in allowed for a in closure(store, operand)):
             return False
     return bool(store.forms[chi])
 

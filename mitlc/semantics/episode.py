@@ -7,12 +7,15 @@ An episode reads a finite trace, one letter per world step, and stops; it succee
   (:func:`mitlc.semantics.finite.evaluate_finite`: ``X``, ``F``, ``U`` strong; ``G``, ``R``
   weak; ``[lo, inf)`` runs to the last letter);
 * except that a **recurrence** ``G χ`` that stands in the formula under ``&`` and ``|`` only
-  (as ``G F β``, ``G (F β1 | F β2)`` or a conjunct of ``G (F β & ...)``, ``β`` propositional,
-  also reached through negations, ``!F G !β``) reads as ``χ``: ``β`` has held at least once.
-  On a finite trace the LTLf value of ``G F β`` is ``β`` at the last letter, which would turn a
-  patrol into a question of where the episode was cut; the episode reads a round, and the
-  number of completed rounds is reported beside success. Every other obligation is owed as
-  LTLf says: a request of ``G (a -> F b)`` not yet answered fails.
+  (as ``G F β``, ``G (F β1 | F β2)`` or a conjunct of ``G (F β & ...)``, also reached through
+  negations, ``!F G !β``), where ``χ`` is a disjunction of ``F ψ`` and ``ψ`` owes only
+  strong obligations (:func:`_strong`: ``β`` propositional, ``a & F b``, ``a U b``, ``a & X
+  b``; no ``G`` or ``R`` but on a single point), reads as ``χ``: ``ψ`` has been met at least
+  once. On a finite trace the LTLf value of ``G F β`` is ``β`` at the last letter (of ``G F (a
+  & F b)``, ``a`` and ``b`` at the last letter), which would turn a patrol into a question of
+  where the episode was cut; the episode reads a round, and the number of completed rounds is
+  reported beside success. Every other obligation is owed as LTLf says: a request of ``G (a ->
+  F b)`` not yet answered fails.
 
 This module does not look at any automaton: it is the reference that the task monitor, the
 gymnasium wrapper, the simulators and the checker are compared with (tests/test_episode_reading.py).
@@ -24,8 +27,6 @@ from collections.abc import Sequence
 
 from mitlc.semantics.finite import Letter, holds_finite
 from mitlc.syntax import ast
-
-_PROPOSITIONAL = (ast.Bool, ast.Atom, ast.Not, ast.And, ast.Or, ast.Implies, ast.Iff)
 
 
 def episode_formula(formula: ast.Formula) -> ast.Formula:
@@ -93,8 +94,7 @@ def _conjuncts(f: ast.Formula, positive: bool) -> list[ast.Formula]:
 
 
 def _renewing(f: ast.Formula, positive: bool = True) -> bool:
-    """Whether ``f`` (``!f``) is a disjunction of ``F β`` on ``[0, inf)``, ``β``
-    propositional."""
+    """Whether ``f`` (``!f``) is a disjunction of ``F ψ`` on ``[0, inf)``, ``ψ`` strong."""
     match f:
         case ast.Not(operand):
             return _renewing(operand, not positive)
@@ -105,8 +105,33 @@ def _renewing(f: ast.Formula, positive: bool = True) -> bool:
         case ast.Implies(left, right) if positive:
             return _renewing(left, False) and _renewing(right, True)
     inner = _unbounded_operand(f, ast.Eventually if positive else ast.Always)
-    return inner is not None and _is_propositional(inner)
+    return inner is not None and _strong(inner, True)
 
 
-def _is_propositional(f: ast.Formula) -> bool:
-    return isinstance(f, _PROPOSITIONAL) and all(_is_propositional(c) for c in ast.children(f))
+def _strong(f: ast.Formula, positive: bool) -> bool:
+    """Whether ``f`` (``!f``) owes only strong obligations: in negation normal form, no ``G``,
+    ``R`` or weak next, but on the single point ``[0, 0]`` (where ``G`` and ``R`` are their
+    operand, and ``F`` and ``U`` too)."""
+    match f:
+        case ast.Bool() | ast.Atom():
+            return True
+        case ast.Not(operand):
+            return _strong(operand, not positive)
+        case ast.And(left, right) | ast.Or(left, right):
+            return _strong(left, positive) and _strong(right, positive)
+        case ast.Implies(left, right):
+            return _strong(left, not positive) and _strong(right, positive)
+        case ast.Iff(left, right):
+            return all(_strong(g, p) for g in (left, right) for p in (True, False))
+        case ast.Next(operand):
+            return positive and _strong(operand, True)
+        case ast.Eventually(interval, operand) | ast.Always(interval, operand):
+            point = interval.lo == 0 and interval.hi == 0
+            strong = isinstance(f, ast.Eventually) == positive
+            return (point or strong) and _strong(operand, positive)
+        case ast.Until(interval, left, right) | ast.Release(interval, left, right):
+            if interval.lo == 0 and interval.hi == 0:
+                return _strong(right, positive)
+            strong = isinstance(f, ast.Until) == positive
+            return strong and _strong(left, positive) and _strong(right, positive)
+    return False
