@@ -7,11 +7,12 @@ and compiled by :func:`compile_labels`:
 
 ``{obs: [15, 3]}``
     a discrete observation (an int or a numpy integer) is one of these;
-``{decoded: {radices: [5, 5, 5, 4], fields: [row, col, passenger, destination],``
-``where: {passenger: [4]}}}``
-    a discrete observation decoded in mixed radix (the first field the most significant, as
-    Taxi's ``decode``): every field listed in ``where`` has one of its values (or, where its
-    entry names another field, ``{passenger: destination}``, the two fields are equal);
+``{decoded: {radices: ..., fields: ..., where: ...}}``
+    e.g. ``{decoded: {radices: [5, 5, 5, 4], fields: [row, col, passenger, destination],
+    where: {passenger: [4]}}}``: a discrete observation decoded in mixed radix (the first field
+    the most significant, as Taxi's ``decode``): every field listed in ``where`` has one of its
+    values (or, where its entry names another field, ``{passenger: destination}``, the two
+    fields are equal);
 ``{box: {index: [0, 1], low: [0.0, 0.0], high: [1.0, 2.0]}}``
     the position read from a Box observation at ``index`` lies in the closed box;
 ``{disc: {index: [0, 1], center: [2.0, 3.0], radius: 0.5}}``
