@@ -7,7 +7,11 @@ wrapper (:class:`mitlc.gym.TaskWrapper`) and the PettingZoo team wrapper
   termination of the step that reached the position; :mod:`mitlc.labels.values`). A labelling
   function's result is checked once, at the first position; declared labels' ``attr`` paths
   are checked on the env at the first reset and their ``info`` paths in the first reset's info
-  or, where one is missing there, the first step's (:mod:`mitlc.labels.probe`).
+  or, where one is missing there, the first step's (:mod:`mitlc.labels.probe`). A label with
+  ``probability: p`` (:mod:`mitlc.labels.chance`) is drawn at each position read, from the env's
+  own generator (``env.unwrapped.np_random``, which ``reset(seed=...)`` seeds), so a run is
+  reproducible from its seed; an env without one (some PettingZoo envs) is read with a
+  generator of the reader's own, seeded from the operating system.
 * :func:`run_out` is the rest of a run whose world has ended (the inner env terminated or
   truncated): as in a finite world, whose terminal states are absorbing, the world stays on
   its last position and the task (:class:`mitlc.task.TaskMonitor`) reads its last letter, one
@@ -19,7 +23,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 from mitlc.labels import LabelDeclarationError, LabelFunction, Labeller, Labels, letter_reader
+from mitlc.labels.chance import ChanceReader, perceive
 from mitlc.labels.function import call_checked
 from mitlc.labels.probe import attr_problems, info_paths_found, info_problems
 from mitlc.labels.values import NO_MOMENT, Moment
@@ -36,8 +43,16 @@ class LetterTaker:
         self.labels = labels
         self._function_unchecked = not isinstance(labels, Labels)
         """A labelling function's result is checked once, at the first position."""
-        self._read = letter_reader(labels, propositions)
+        drawn = isinstance(labels, Labeller) and bool(labels.uncertain(propositions))
+        self._chances: ChanceReader | None = None
+        """The chances of a position, where a label is perceived with a probability."""
+        if drawn:
+            assert isinstance(labels, Labeller)
+            self._chances = labels.chance_reader(propositions)
+        else:
+            self._read = letter_reader(labels, propositions)
         self._env = env
+        self._own_rng: np.random.Generator | None = None
         values = labels.values() if isinstance(labels, Labeller) else ()
         guides = labels.guides() if isinstance(labels, Labeller) else ()
         self.reads_moment = bool(values or guides)
@@ -54,11 +69,23 @@ class LetterTaker:
         if self._function_unchecked:
             self._function_unchecked = False
             call_checked(self.labels, obs, info)
-        if not self.reads_moment:
+        if self._chances is None and not self.reads_moment:
             return self._read(obs, info)
         if self._probe is not None:
             self._check_labels(info, reset=moment.reward is None)
+        if self._chances is not None:
+            return perceive(self._chances(obs, info, moment), self.generator())
         return self._read(obs, info, moment)
+
+    def generator(self) -> np.random.Generator:
+        """The generator of the draws of labels with a probability: the env's own
+        (``np_random``, seeded by its ``reset(seed=...)``), else one of this reader's."""
+        rng = getattr(self._env, "np_random", None)
+        if isinstance(rng, np.random.Generator):
+            return rng
+        if self._own_rng is None:
+            self._own_rng = np.random.default_rng()
+        return self._own_rng
 
     def _check_labels(self, info: dict[str, Any], *, reset: bool) -> None:
         """Check the labels' ``attr`` paths on the env at the first reset, and their ``info``

@@ -10,7 +10,12 @@ plumbing between the monitor and the environment:
   :mod:`mitlc.labels.probe`); ``held`` or-s every letter read. On a world action the monitor
   reads the letter of the position being *left* (the labels of the current ``obs``/``info``),
   then the environment steps and the new letter is remembered for the next step; so a verdict
-  shows one step after arrival (the convention of the explicit product).
+  shows one step after arrival (the convention of the explicit product). A declared label with
+  ``probability: p`` (``{obs: [15], probability: 0.9}``: :mod:`mitlc.labels.chance`) is
+  perceived with probability ``p`` where its form holds, drawn at every position read (the
+  reset's and each step's, not after the env has ended: the last letter stays), from the env's
+  own generator, the wrapper's ``np_random``, which ``reset(seed=...)`` seeds: an episode is
+  reproducible from its seed, and a label of probability 1 draws nothing.
 * **Observation.** ``Dict({"env": env's space, "automaton": Discrete(Q), "frontier":
   Discrete(2 ** num_sets)})``: the frontier (the acceptance sets seen in the current round) is
   the monitor's bit mask as one integer, so the observation is the task's full state and
@@ -60,7 +65,9 @@ plumbing between the monitor and the environment:
   indices), ``rounds``, ``success``, ``is_success`` (SB3's name; equal to ``success``), ``step``,
   ``invalid_action``, ``automaton_state``, ``accepting`` (the step added a set to the
   frontier: the monitor's ``new``), ``letter`` (the letter the task read on this step, that of
-  the position left; -1 where it read none: a reset or a jump), ``env_reward`` (the env's
+  the position left, as perceived: a label with a probability is there only where its draw
+  held; nothing else about the draws is added; -1 where it read none: a reset or a jump),
+  ``env_reward`` (the env's
   reward of the step, 0 where the env did not step) and, with a ``Discrete`` action space,
   ``action_mask`` (the
   valid actions now, :meth:`TaskWrapper.masks_of`; gymnasium's toy-text convention, so that a

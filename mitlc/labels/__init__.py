@@ -26,7 +26,10 @@ and compiled by :func:`compile_labels`:
 
 For a Dict observation, ``key`` names the part a form reads: beside ``obs``
 (``{obs: [1, 2], key: agent}``), inside the mapping of ``decoded``, ``box`` and ``disc``. A
-proposition may also be declared by a list of forms: it holds when any of them holds.
+proposition may also be declared by a list of forms: it holds when any of them holds. Any form
+may carry ``probability: p`` beside it (``{obs: [15], probability: 0.9}``): where it holds, the
+proposition is perceived with probability ``p``, drawn anew at each position
+(:mod:`mitlc.labels.chance`).
 
 A callable that does not keep to that contract raises :class:`LabelFunctionError` (a
 ``TypeError``; :mod:`mitlc.labels.function`). A bad declaration raises
@@ -37,6 +40,7 @@ do not multiply to its size). Nothing here imports gymnasium: spaces are read by
 attributes. Compiled labels are plain classes holding data, so they pickle (AsyncVectorEnv).
 """
 
+from mitlc.labels.chance import ChanceReader, Chances, perceive
 from mitlc.labels.declare import FORMS, as_labels, compile_labels, letters_of_states
 from mitlc.labels.forms import (
     CachedLetters,
@@ -62,6 +66,8 @@ __all__ = [
     "FORMS",
     "CachedLetters",
     "CallableLetters",
+    "ChanceReader",
+    "Chances",
     "DeclaredLetters",
     "Decoded",
     "Form",
@@ -80,5 +86,6 @@ __all__ = [
     "compile_labels",
     "letter_reader",
     "letters_of_states",
+    "perceive",
     "undeclared",
 ]

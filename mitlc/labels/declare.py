@@ -4,6 +4,7 @@ see :mod:`mitlc.labels`)."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from mitlc.labels.chance import CERTAIN
 from mitlc.labels.declare_values import GUIDE, VALUE_FORMS, guide, value_form
 from mitlc.labels.forms import (
     Decoded,
@@ -69,7 +71,7 @@ def compile_labels(
         raise LabelDeclarationError(
             f"{path}: expected a mapping from proposition names to label forms"
         )
-    names, forms = [], []
+    names, forms, probabilities = [], [], []
     for name, declaration in declarations.items():
         if not isinstance(name, str) or not _NAME.match(name):
             raise LabelDeclarationError(f"{path}: {name!r} is not a proposition name")
@@ -78,17 +80,46 @@ def compile_labels(
             if not declaration:
                 raise LabelDeclarationError(f"{where}: expected at least one form")
             parsed = tuple(
-                _form(d, f"{where}[{i}]", observation_space) for i, d in enumerate(declaration)
+                _perceived(d, f"{where}[{i}]", observation_space) for i, d in enumerate(declaration)
             )
         else:
-            parsed = (_form(declaration, where, observation_space),)
+            parsed = (_perceived(declaration, where, observation_space),)
         names.append(name)
-        forms.append(parsed)
-    return Labeller(tuple(names), tuple(forms))
+        forms.append(tuple(f for f, _ in parsed))
+        probabilities.append(tuple(p for _, p in parsed))
+    return Labeller(tuple(names), tuple(forms), tuple(probabilities))
 
 
 def _fail(path: str, message: str) -> LabelDeclarationError:
     return LabelDeclarationError(f"{path}: {message}")
+
+
+PROBABILITY = "probability"
+"""The key of a form's probability of being perceived (:mod:`mitlc.labels.chance`)."""
+
+
+def _perceived(declaration: Any, path: str, space: Any) -> tuple[Form, float]:
+    """A form and the probability that it is perceived where it holds (1 unless the
+    declaration gives ``probability``)."""
+    if callable(declaration):
+        raise _fail(path, "expected a form, not a labelling function (a function labels every "
+                    "proposition at once, labels=f, and takes no probability)")  # fmt: skip
+    if not isinstance(declaration, Mapping) or PROBABILITY not in declaration:
+        return _form(declaration, path, space), CERTAIN
+    where = f"{path}.{PROBABILITY}"
+    rest = {k: v for k, v in declaration.items() if k != PROBABILITY}
+    if any(callable(v) for v in rest.values()):
+        raise _fail(where, "a labelling function takes no probability: declare the label by a "
+                    "form (obs, decoded, box, disc, info, attr, reward, terminated)")  # fmt: skip
+    return _form(rest, path, space), probability(declaration[PROBABILITY], where)
+
+
+def probability(value: Any, path: str) -> float:
+    """A form's ``probability``: a number in (0, 1]; an error naming ``path`` otherwise."""
+    if not _is_number(value) or not 0 < value <= 1:
+        shown = json.dumps(value) if isinstance(value, str | bool) or value is None else value
+        raise _fail(path, f"expected a probability in (0, 1], got {shown}")
+    return float(value)
 
 
 def _form(declaration: Any, path: str, space: Any) -> Form:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 from mitlc.errors import MitlcError
+from mitlc.labels.chance import CERTAIN, ChanceReader
 from mitlc.labels.function import true_names
 from mitlc.labels.values import NO_MOMENT, AttrPath, InfoPath, Moment, Value
 
@@ -175,15 +176,18 @@ class CachedLetters:
 @dataclass(frozen=True, slots=True)
 class Labeller:
     """Compiled declarative labels: ``forms[i]`` are the forms of ``propositions[i]`` (any of
-    them makes it true)."""
+    them makes it true), ``probabilities[i][j]`` the probability that form ``forms[i][j]`` is
+    perceived where it holds (:mod:`mitlc.labels.chance`; empty: every form certain)."""
 
     propositions: tuple[str, ...]
     forms: tuple[tuple[Form, ...], ...]
+    probabilities: tuple[tuple[float, ...], ...] = ()
 
     def __call__(
         self, obs: Any, info: Mapping[str, Any], moment: Moment = NO_MOMENT
     ) -> frozenset[str]:
-        """The propositions true at ``(obs, info)`` at ``moment``."""
+        """The propositions whose forms hold at ``(obs, info)`` at ``moment`` (those with a
+        probability are then perceived only with it: :meth:`chance_reader`)."""
         return frozenset(
             p
             for p, forms in zip(self.propositions, self.forms, strict=True)
@@ -211,17 +215,52 @@ class Labeller:
             if isinstance(f, Guided)
         )
 
+    def probabilities_of(self, proposition: str) -> tuple[float, ...]:
+        """The probability of each form of ``proposition`` (declared here)."""
+        i = self.propositions.index(proposition)
+        return self.probabilities[i] if self.probabilities else (CERTAIN,) * len(self.forms[i])
+
+    def uncertain(self, propositions: Sequence[str]) -> list[str]:
+        """Those of ``propositions`` (each must be declared here) that a form perceives with a
+        probability below 1."""
+        self._index(propositions)
+        return [p for p in propositions if any(q < CERTAIN for q in self.probabilities_of(p))]
+
+    def chance_reader(self, propositions: Sequence[str]) -> ChanceReader:
+        """A reader of the chances over ``propositions`` (each must be declared here) that
+        :func:`mitlc.labels.chance.perceive` draws a letter from."""
+        index = self._index(propositions)
+        return ChanceReader(
+            tuple(
+                (1 << j, self.forms[index[p]], self.probabilities_of(p))
+                for j, p in enumerate(propositions)
+            )
+        )
+
     def letter_reader(self, propositions: Sequence[str]) -> DeclaredLetters | CachedLetters:
-        """A reader of letters over ``propositions`` (each must be declared here)."""
-        index = {p: i for i, p in enumerate(self.propositions)}
-        missing = [p for p in propositions if p not in index]
-        if missing:
-            raise undeclared(missing, self.propositions)
+        """A reader of letters over ``propositions`` (each must be declared here and certain:
+        a letter with a probability is drawn, :meth:`chance_reader`)."""
+        index = self._index(propositions)
+        if drawn := self.uncertain(propositions):
+            raise LabelDeclarationError(
+                f"labels.{drawn[0]}.probability: the proposition is perceived with a "
+                "probability, so its letter is drawn: read it with Labeller.chance_reader and "
+                "mitlc.labels.chance.perceive"
+            )
         checks = tuple((1 << j, self.forms[index[p]]) for j, p in enumerate(propositions))
         letters = DeclaredLetters(checks)
         if all(isinstance(f, ObsIn | Decoded) and f.key is None for _, fs in checks for f in fs):
             return CachedLetters(letters)
         return letters
+
+    def _index(self, propositions: Sequence[str]) -> dict[str, int]:
+        """Each declared proposition's index; an error naming those of ``propositions`` that
+        are not declared."""
+        index = {p: i for i, p in enumerate(self.propositions)}
+        missing = [p for p in propositions if p not in index]
+        if missing:
+            raise undeclared(missing, self.propositions)
+        return index
 
 
 @dataclass(frozen=True, slots=True)

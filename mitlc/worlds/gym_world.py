@@ -68,6 +68,7 @@ from mitlc.worlds import env_make
 from mitlc.worlds.env_make import ENV_ID
 from mitlc.worlds.grid import FieldPath, Found, render
 from mitlc.worlds.gym_events import EventStates, split_by_events
+from mitlc.worlds.gym_uncertain import Interned, chance_read, drawn_states, observation_kinds
 from mitlc.worlds.model import IntArray, Sparse, World
 from mitlc.worlds.schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel, show
 
@@ -356,16 +357,21 @@ def _split(
     m: int,
     propositions: Sequence[str],
     starts: Sequence[tuple[int, float]],
+    drawn: Interned | None,
 ) -> EventStates:
-    """The env's states split by the events of the steps into them (:mod:`gym_events`)."""
+    """The env's states split by the events of the steps into them (:mod:`gym_events`), each
+    keeping its letter, or the number of its chances where a label is ``drawn``."""
     from mitlc.labels import compile_labels
 
     declared = declarations({p: file.labels[p] for p in propositions if p in file.labels})
     named = tuple(declared)
-    reader = compile_labels(declared).letter_reader(named)
+    reader = compile_labels(declared).letter_reader(named) if drawn is None else None
     bits = [(named.index(p), i) for i, p in enumerate(propositions) if p in declared]
 
     def read(obs: int, moment: Moment) -> int:
+        if drawn is not None:
+            return drawn(obs, moment)
+        assert reader is not None
         partial = reader(obs, {}, moment)
         return sum(((partial >> j) & 1) << i for j, i in bits)
 
@@ -554,14 +560,23 @@ def build_world(
     start, distribution = start_of(unwrapped, n, env_id)
     starts = [s for s, _ in distribution] or [start]
     grid_rows, grid_cols, cells = _layout(unwrapped, n)
+    declared = declarations({p: file.labels[p] for p in propositions if p in file.labels})
+    chances = chance_read(declared, propositions)
+    drawn = None if chances is None else Interned(chances)  # labels with a probability
     if has_events(file.labels):
-        split = _split(file, unwrapped.P, m, propositions, distribution or ((start, 1.0),))
+        split = _split(file, unwrapped.P, m, propositions, distribution or ((start, 1.0),), drawn)
         letters = np.asarray(split.letters, dtype=np.int64)
         rows, start, distribution = split.rows, split.start, split.start_distribution
         cells = tuple(cells[o] for o in split.observation)
     else:
-        letters = letters_of(file.labels, propositions, n)
         _absorb(rows, ending, plain, starts, m, env_id)
+        letters = (letters_of(file.labels, propositions, n) if drawn is None
+                   else np.asarray(observation_kinds(drawn, n, ending)))  # fmt: skip
+    transitions = Sparse.from_rows(rows)
+    if drawn is not None:  # the outcomes go into the states (mitlc.worlds.gym_uncertain)
+        states = drawn_states(drawn, letters.tolist(), rows, distribution or ((start, 1.0),), m)
+        letters, transitions, start = states.letters, states.transitions, states.start
+        distribution, cells = states.start_distribution, tuple(cells[b] for b in states.base)
     empty = [p for i, p in enumerate(propositions) if not np.any((letters >> i) & 1)]
     if empty:
         known = ", ".join(sorted(file.labels)) or "none"
@@ -576,7 +591,7 @@ def build_world(
         cells=cells,
         actions=actions,
         start=start,
-        transitions=Sparse.from_rows(rows),
+        transitions=transitions,
         propositions=propositions,
         letters=letters,
         spec=spec,

@@ -650,10 +650,17 @@ class Env(_Model):
     )
 
 
+ENV_PROBABILITY_DESCRIPTION = (
+    "The probability that the proposition is perceived where the form holds, drawn anew at "
+    "each position, independently of every other (1: certain; mitlc/labels/chance.py)."
+)
+
+
 class ObsLabel(_Model):
     """A proposition that holds in the listed observations (the env's discrete states)."""
 
     obs: States = Field(description="The observations where the proposition holds.")
+    probability: LabelProbability = Field(default=1.0, description=ENV_PROBABILITY_DESCRIPTION)
 
 
 class Decoding(_Model):
@@ -674,6 +681,7 @@ class DecodedLabel(_Model):
     """A proposition over the decoded fields of the state."""
 
     decoded: Decoding = Field(description="The decoding and the condition on its fields.")
+    probability: LabelProbability = Field(default=1.0, description=ENV_PROBABILITY_DESCRIPTION)
 
 
 FORM_KEYS = ("box", "disc", "info", "key", "attr", "reward", "terminated")
@@ -702,6 +710,14 @@ FormLabel = Annotated[
                 {"type": "array", "minItems": 1},
                 {
                     "type": "object",
+                    "properties": {
+                        "probability": {
+                            "type": "number",
+                            "exclusiveMinimum": 0,
+                            "maximum": 1,
+                            "description": ENV_PROBABILITY_DESCRIPTION,
+                        }
+                    },
                     "anyOf": [
                         *({"required": [key]} for key in FORM_KEYS),
                         {
@@ -771,8 +787,9 @@ class EnvWorldFile(TaskFields):
         "radius}} for a Box one; 'key' for a part of a Dict observation; {info: path} or "
         "{attr: path} (a dotted path into info or on env.unwrapped) with a test (equals, in, "
         "below, above, box, disc; none: truthy); the step's events {reward: {below: x}}, "
-        "{terminated: true}; or a list of these (any of them). Every proposition of the spec "
-        "must be labelled.",
+        "{terminated: true}; or a list of these (any of them). Any form may carry "
+        "probability: p beside it (perceived with probability p where it holds, drawn at each "
+        "position). Every proposition of the spec must be labelled.",
     )
     costs: CostsSection | None = Field(default=None, description=COSTS_DESCRIPTION)
     occupancy: OccupancySection | None = Field(

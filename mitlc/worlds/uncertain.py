@@ -5,7 +5,9 @@ each time the robot is in one of its cells, the proposition holds with that prob
 independently of every other step and every other label. ``World.letters`` must stay a function
 of the state (the product, the checker, the DRN export, the simulator, the wrapper, the exact
 evaluation, the learners and the shields all read it so), so the outcome goes into the state,
-as a team world puts its swap flag there (:mod:`mitlc.worlds.team`):
+as a team world puts its swap flag there (:mod:`mitlc.worlds.team`). A finite env world whose
+labels carry a probability is expanded the same way (:func:`expand_outcomes`, over its env
+states: :mod:`mitlc.worlds.gym_uncertain`):
 
 **States.** A world state is a cell with the outcome of its uncertain labels: the set of them
 that holds now. A cell without uncertain labels has one state; a cell with ``k`` of them has
@@ -46,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mitlc.worlds.grid import Cell, Layout
-from mitlc.worlds.model import FloatArray, IntArray, Observations, Sparse
+from mitlc.worlds.model import BoolArray, FloatArray, IntArray, Observations, Sparse
 from mitlc.worlds.schema import UncertainLabel, WeightedStart, label_cells
 
 
@@ -68,14 +70,24 @@ class Expansion:
         """Whether every cell has one state (no uncertain label is read)."""
         return len(self.cell) == len(self.first) - 1
 
-    def transitions(self, motion: Sparse, num_actions: int) -> Sparse:
+    def transitions(
+        self, motion: Sparse, num_actions: int, absorbing: BoolArray | None = None
+    ) -> Sparse:
         """The motion model over cells (rows ``c * num_actions + a``) as rows
-        ``s * num_actions + a`` over the states, each target cell split by its outcomes."""
+        ``s * num_actions + a`` over the states, each target cell split by its outcomes. The
+        states of a cell ``c`` with ``absorbing[c]`` keep their outcome: each of their actions
+        loops to the state itself (an env world's ended episode, whose last letter stays:
+        :mod:`mitlc.worlds.gym_uncertain`)."""
         if self.trivial:
             return motion
         over_cells = self._split(motion)
         rows = (self.cell[:, None] * num_actions + np.arange(num_actions)).ravel()
-        return _gather(over_cells, rows)
+        if absorbing is None or not absorbing.any():
+            return _gather(over_cells, rows)
+        loops = _loops(len(self.cell), num_actions)
+        both = _stacked(over_cells, loops)
+        stay = np.repeat(absorbing[self.cell], num_actions)
+        return _gather(both, np.where(stay, over_cells.num_rows + np.arange(len(rows)), rows))
 
     def observations(self, model: Observations | None) -> Observations | None:
         """The sensor's row of each state's cell (see the module docstring)."""
@@ -107,9 +119,19 @@ def expand(
 ) -> Expansion:
     """The states of free ``cells`` whose certain letters are ``certain`` and whose uncertain
     labels are ``(bit, cells, probability)`` (probability below 1)."""
+    return expand_outcomes(
+        certain, [[(bit, p) for bit, where, p in uncertain if cell in where] for cell in cells]
+    )
+
+
+def expand_outcomes(
+    certain: Sequence[int], uncertain: Sequence[Sequence[tuple[int, float]]]
+) -> Expansion:
+    """The states of cells ``c`` whose certain letter is ``certain[c]`` and whose uncertain
+    labels are ``uncertain[c]``, pairs ``(bit, probability)`` (bit ``i`` of the letter, a
+    probability below 1), each holding independently of the others."""
     cell_ids, letters, probs, first = [], [], [], [0]
-    for c, cell in enumerate(cells):
-        here = [(bit, p) for bit, where, p in uncertain if cell in where]
+    for c, here in enumerate(uncertain):
         outcomes: list[tuple[int, float]] = [(0, 1.0)]
         for bit, p in here:
             outcomes = [(o | (1 << bit), q * p) for o, q in outcomes] + [
@@ -189,6 +211,23 @@ def _ranges(starts: IntArray, counts: IntArray) -> IntArray:
     offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
     found: IntArray = np.repeat(starts, counts) + offsets
     return found
+
+
+def _loops(num_states: int, num_actions: int) -> Sparse:
+    """Rows ``s * num_actions + a`` that stay in ``s`` with probability 1."""
+    n = num_states * num_actions
+    targets = np.repeat(np.arange(num_states, dtype=np.int64), num_actions)
+    return Sparse(np.arange(n + 1, dtype=np.int64), targets, np.ones(n))
+
+
+def _stacked(top: Sparse, bottom: Sparse) -> Sparse:
+    """The rows of ``top``, then those of ``bottom``."""
+    indptr = np.concatenate([top.indptr, top.indptr[-1] + bottom.indptr[1:]])
+    return Sparse(
+        indptr,
+        np.concatenate([top.targets, bottom.targets]),
+        np.concatenate([top.probs, bottom.probs]),
+    )
 
 
 def _gather(sparse: Sparse, rows: IntArray) -> Sparse:
