@@ -75,7 +75,7 @@ def check_arguments(env: Any, spec: Any, labels: Any, options: Mapping[str, Any]
     """Check the wrapper's arguments: ``env``, ``spec``, ``labels`` and the keywords in
     ``options`` (``horizon``, ``rewards``, ``reward_mode``, ``flatten``,
     ``max_automaton_states``, ``max_jumps``, ``env_key``, ``env_end``, ``task_obs``,
-    ``potential``)."""
+    ``potential``, ``guide``)."""
     if not isinstance(env, gym.Env):
         raise TaskWrapperTypeError(f"env: expected a gymnasium.Env, got {_type_name(env)}")
     _check_spec(spec)
@@ -98,6 +98,13 @@ def check_arguments(env: Any, spec: Any, labels: Any, options: Mapping[str, Any]
     if potential is not None and (not _is_number(potential) or potential < 0):
         error = TaskWrapperError if _is_number(potential) else TaskWrapperTypeError
         raise error(f"potential: expected a reach >= 0, got {potential!r}")
+    if not isinstance(options["guide"], bool):
+        raise TaskWrapperTypeError(f"guide: expected True or False, got {options['guide']!r}")
+    if options["guide"] and potential is None:
+        raise TaskWrapperError(
+            "guide: the way points along the shaping potential's pull: give potential=REACH "
+            "too (0: the largest distance at the first reset)"
+        )
 
 
 def _check_spec(spec: Any) -> None:

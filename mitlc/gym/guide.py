@@ -13,6 +13,14 @@ Where the env's occupancy is known (:mod:`mitlc.labels.geodesic`: a maze's ``maz
 MiniGrid grid, a plane's obstacles, or one declared), the distances of 2-D regions are
 geodesic, through free space (:mod:`mitlc.labels.occupancy`); the occupancy is read again at
 each reset (a MiniGrid layout changes with the episode).
+
+**The way** (the wrapper's ``guide=True``): the unit vector, in the space of the position the
+labels read, along which the distance to the proposition the potential pulls toward falls
+fastest (:meth:`TaskGuide.way`: the nearest that advances the task state,
+:meth:`mitlc.task.potential.TaskPotential.leading`; its direction,
+:func:`mitlc.labels.distance.form_direction`), through free space where the occupancy is known:
+the gradient of the potential's pull, shown to the policy so that it can follow the pull the
+shaping rewards (zeros where no proposition pulls or the position is in its region).
 """
 
 from __future__ import annotations
@@ -25,10 +33,11 @@ import numpy as np
 
 from mitlc.gym.arguments import TaskWrapperTypeError
 from mitlc.labels import Labeller
-from mitlc.labels.distance import distances
+from mitlc.labels.distance import Point, directions, distances
+from mitlc.labels.forms import Guided, InBox, InDisc
 from mitlc.labels.geodesic import Geodesic, has_region, occupancy_source
 from mitlc.labels.occupancy import Occupancy
-from mitlc.labels.values import Moment
+from mitlc.labels.values import Equals, Moment, Region, Value, vector
 from mitlc.task.potential import TaskPotential
 from mitlc.worlds.model import BoolArray, FloatArray, IntArray
 
@@ -92,6 +101,36 @@ class TaskGuide:
         self.geodesic, self._env = geodesic, env
         self.now: Found = []
         """The distances of the position now."""
+        self.pointing = 0
+        """The size of :meth:`way` (0: not measured; :meth:`point`)."""
+        self.toward: list[Point | None] = []
+        """With :attr:`pointing`, the directions of the position now (:meth:`way`)."""
+
+    def point(self, labels: Any) -> int:
+        """Measure the directions too, from now on (:meth:`way`), and return their size: the
+        largest position a label's region or point reads (a guide's ``from``: 2);
+        a :class:`TaskWrapperTypeError` where no label has one."""
+        size = max((position_size(f) for fs in getattr(labels, "forms", ()) for f in fs), default=0)
+        if not isinstance(labels, Labeller) or size == 0:
+            raise TaskWrapperTypeError(
+                "guide: no declared label has a region or a position to point toward"
+            )
+        self.pointing = size
+        return size
+
+    def way(self, q: int) -> FloatArray:
+        """The way (module docstring) in automaton state ``q`` from the position now."""
+        result = np.zeros(self.pointing, dtype=np.float64)
+        leading = self.shaping.leading(q, self.array(self.now)) if self.toward else None
+        found = None if leading is None else self.toward[leading]
+        if found is not None:
+            if found.size > self.pointing:
+                raise TaskWrapperTypeError(
+                    f"guide: a label's position has {found.size} values, more than the "
+                    f"{self.pointing} its declaration gave"
+                )
+            result[: found.size] = found
+        return result
 
     def measure(
         self, labels: Any, obs: Any, info: Mapping[str, Any], moment: Moment, reset: bool = False
@@ -109,6 +148,8 @@ class TaskGuide:
             found = labels.distances(self.propositions, obs, info, moment, **more)
         else:
             found = []
+        if self.pointing and isinstance(labels, Labeller):
+            self.toward = directions(labels, self.propositions, obs, info, moment, geodesic)
         if found and not self.reach:
             known = [d for d in found if d is not None and d > 0.0]
             self.reach = max(known, default=1.0)
@@ -135,3 +176,17 @@ class TaskGuide:
         """Restore :meth:`state_dict` (entries missing from an older checkpoint are kept)."""
         self.reach = float(saved.get("reach", self.reach))
         self.now = [None if d is None else float(d) for d in saved.get("distances", [])]
+
+
+def position_size(form: Any) -> int:
+    """The number of values of the position ``form`` reads (0: none; a guide's: 2)."""
+    if isinstance(form, InBox | InDisc):
+        return len(form.index)
+    if isinstance(form, Guided):
+        return 2
+    if isinstance(form, Value) and isinstance(form.test, Region):
+        return form.test.size
+    if isinstance(form, Value) and isinstance(form.test, Equals):
+        expected = vector(form.test.expected)
+        return 0 if expected is None else int(expected.size)
+    return 0

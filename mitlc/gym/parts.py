@@ -78,6 +78,8 @@ class TaskObservation:
     clocks: ClockView | None = None
     features: npt.NDArray[np.float32] | None = None
     """The clock view's features, a row per automaton state."""
+    guide: int = 0
+    """The size of the way shown (``guide``: a ``Box`` in [-1, 1], last; 0: none)."""
 
     @staticmethod
     def of(
@@ -87,40 +89,52 @@ class TaskObservation:
         num_sets: int,
         flatten: bool,
         clocks: ClockView | None = None,
+        guide: int = 0,
     ) -> TaskObservation:
         """The observation of an env with ``env_space`` (an
         :class:`~mitlc.gym.observations.UnreadableObservation`, a ``ValueError``, when it is
         flattened and has nothing a learner can read); ``clocks``: show the task's state by
-        its clock view."""
+        its clock view; ``guide``: the size of the way shown (0: none)."""
         features = None if clocks is None else clocks.features()
         if not flatten:
             task = TaskPart.of(num_q, num_sets, clocks).spaces
+            if guide:
+                task["guide"] = spaces.Box(-1.0, 1.0, (guide,), dtype=np.float32)
             space = spaces.Dict({env_key: env_space, **task})
             return TaskObservation(
-                env_space, env_key, num_q, num_sets, False, space, clocks=clocks, features=features
-            )
+                env_space, env_key, num_q, num_sets, False, space, clocks=clocks,
+                features=features, guide=guide,
+            )  # fmt: skip
         part = readable(env_space)
         flat = part.space
         width = (num_q if features is None else features.shape[1]) + num_sets
-        low = np.concatenate([flat.low, np.zeros(width)]).astype(np.float32)
-        high = np.concatenate([flat.high, np.ones(width)]).astype(np.float32)
+        low = np.concatenate([flat.low, np.zeros(width), -np.ones(guide)]).astype(np.float32)
+        high = np.concatenate([flat.high, np.ones(width + guide)]).astype(np.float32)
         box = spaces.Box(low, high, dtype=np.float32)
         return TaskObservation(
-            env_space, env_key, num_q, num_sets, True, box, part.size, part, clocks, features
-        )
+            env_space, env_key, num_q, num_sets, True, box, part.size, part, clocks, features,
+            guide,
+        )  # fmt: skip
 
-    def observe(self, obs: Any, q: int, frontier: int) -> Any:
-        """The observation of the env's ``obs`` in automaton state ``q`` with ``frontier``."""
+    def observe(
+        self, obs: Any, q: int, frontier: int, way: npt.NDArray[np.float64] | None = None
+    ) -> Any:
+        """The observation of the env's ``obs`` in automaton state ``q`` with ``frontier``
+        (and, where the way is shown, ``way``)."""
         if not self.flatten:
             if self.clocks is None:
-                return {self.env_key: obs, "automaton": q, "frontier": frontier}
-            clocks = self.features[q, self.clocks.num_locations :]  # type: ignore[index]
-            location = self.clocks.location[q]
-            return {self.env_key: obs, "location": location, "clocks": clocks.copy(),
-                    "frontier": frontier}  # fmt: skip
+                found = {self.env_key: obs, "automaton": q, "frontier": frontier}
+            else:
+                clocks = self.features[q, self.clocks.num_locations :]  # type: ignore[index]
+                location = self.clocks.location[q]
+                found = {self.env_key: obs, "location": location, "clocks": clocks.copy(),
+                         "frontier": frontier}  # fmt: skip
+            if self.guide:
+                found["guide"] = self._way(way)
+            return found
         dim = self.env_dim
         task = self.num_q if self.features is None else self.features.shape[1]
-        flat = np.zeros(dim + task + self.num_sets, dtype=np.float32)
+        flat = np.zeros(dim + task + self.num_sets + self.guide, dtype=np.float32)
         assert self.readable is not None, "a flat observation has its readable part"
         self.readable.write(obs, flat[:dim])
         if self.features is None:
@@ -131,7 +145,14 @@ class TaskObservation:
         for k in range(self.num_sets):
             if frontier >> k & 1:
                 flat[base + k] = 1.0
+        if self.guide:
+            flat[base + self.num_sets :] = self._way(way)
         return flat
+
+    def _way(self, way: npt.NDArray[np.float64] | None) -> npt.NDArray[np.float32]:
+        if way is None:
+            return np.zeros(self.guide, dtype=np.float32)
+        return np.asarray(way, dtype=np.float32)
 
 
 def data_only(value: Any) -> Any:

@@ -147,6 +147,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         task_obs: TaskObs = "state",
         potential: float | None = None,
         occupancy: OccupancyChoice = "auto",
+        guide: bool = False,
     ) -> None:
         """Wrap ``env`` with the task ``spec`` (a formula's text, or an automaton), read through
         ``labels``. ``max_automaton_states`` (and ``max_jumps``, default 0) size a lazy
@@ -157,17 +158,20 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         ``info["potential"]`` is the task's shaping potential (module docstring), and
         ``info["distances"]`` / ``info["distances_left"]`` how far the positions reached and
         left are from each proposition (:meth:`potential_at` reads them for any task state),
-        measured through the free cells of ``occupancy`` (module docstring)."""
+        measured through the free cells of ``occupancy`` (module docstring); with ``guide``
+        (and ``potential``) the observation shows the way the potential pulls, a unit vector
+        (:meth:`mitlc.gym.guide.TaskGuide.way`)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
             env_end=env_end, task_obs=task_obs, potential=potential, occupancy=occupancy,
+            guide=guide,
         )  # fmt: skip
         options = dict(
             rewards=rewards, horizon=horizon, reward_mode=reward_mode, flatten=flatten,
             max_automaton_states=max_automaton_states, max_jumps=max_jumps, env_key=env_key,
-            env_end=env_end, task_obs=task_obs, potential=potential,
+            env_end=env_end, task_obs=task_obs, potential=potential, guide=guide,
         )  # fmt: skip
         check_arguments(env, spec, labels, options)
         gym.Wrapper.__init__(self, env)
@@ -198,18 +202,20 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             for m in range(1 << min(self._num_sets, 12))
         ]
         self._env_key = env_key
-        self._action_spaces(env.action_space)
-        self._observation_spaces(env.observation_space)
-        self._state: MonitorState = self.monitor.reset()
-        self._letter, self._done, self._ended = 0, True, False
-        self._env_obs: Any = None
-        self._env_info: dict[str, Any] = {}
         shaping = shaping_of(automaton, potential)
         self._guide = None
         if shaping is not None:
             geodesic = geodesic_of(env.unwrapped, self.labels, occupancy)
             self._guide = TaskGuide(shaping, automaton.propositions, float(potential or 0.0),
                                     geodesic, env.unwrapped)  # fmt: skip
+            if guide:
+                self._guide.point(self.labels)
+        self._action_spaces(env.action_space)
+        self._observation_spaces(env.observation_space)
+        self._state: MonitorState = self.monitor.reset()
+        self._letter, self._done, self._ended = 0, True, False
+        self._env_obs: Any = None
+        self._env_info: dict[str, Any] = {}
 
     def _warn_cut(self, what: str) -> None:
         if not self._cut_warned:
@@ -258,9 +264,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
 
     def _observation_spaces(self, space: spaces.Space[Any]) -> None:
         try:
+            pointing = self._guide.pointing if self._guide is not None else 0
             self._view = TaskObservation.of(
-                space, self._env_key, self.num_q, self._num_sets, self.flatten, self.clocks
-            )
+                space, self._env_key, self.num_q, self._num_sets, self.flatten, self.clocks,
+                pointing,
+            )  # fmt: skip
         except ValueError as err:
             raise TaskWrapperError(f"flatten: {err}") from None
         self.observation_space = self._view.space
@@ -429,7 +437,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
             out = run_out(monitor, last, self._letter, self.horizon)
             state, marks, new, reward, verdict, decided, success = out
         self._state = state
-        q, frontier, _, steps = state
+        q, _, _, steps = state
         if q >= self._checked_below:
             self._check_capacity(q)
         terminated = bool(decided)
@@ -439,7 +447,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["env_reward"] = env_reward
         if guide is not None:
             info["distances_left"] = guide.array(left)
-        return self._view.observe(obs, q, frontier), reward, terminated, truncated, info
+        return self._observation(obs, state), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         out = self.monitor.jump(self._state, j)
@@ -493,7 +501,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return tuple(k for k in range(self._num_sets) if marks >> k & 1)
 
     def _observation(self, obs: Any, state: MonitorState) -> Any:
-        return self._view.observe(obs, state.q, state.frontier)
+        guide = self._guide
+        way = guide.way(state.q) if guide is not None and guide.pointing else None
+        return self._view.observe(obs, state.q, state.frontier, way)
 
     def _info(
         self,

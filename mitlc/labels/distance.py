@@ -26,7 +26,7 @@ one. This is the labels' distance for shaping only; whether a form holds is unch
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -54,51 +54,83 @@ def _region(region: Region, value: Any) -> float | None:
     return _to_box(x, region.low, region.high)
 
 
-def _value(
-    form: Value, obs: Any, info: Mapping[str, Any], moment: Moment, geodesic: Geodesic | None
-) -> float | None:
-    test = form.test
-    if not isinstance(test, Region | Equals | Bound):
+Point = np.ndarray[Any, Any]
+Measure = Callable[[Point], float]
+"""A form's distance as a function of the position it reads (the rest of the observation
+fixed)."""
+
+
+def _measure(
+    form: Form, obs: Any, info: Mapping[str, Any], moment: Moment, geodesic: Geodesic | None
+) -> tuple[Point, Measure] | None:
+    """The position ``form`` reads at ``(obs, info)`` and its distance as a function of that
+    position (module docstring), for the forms over a position: a box, a disc, a value's
+    region or ``equals``, a guide's ``from``; ``None`` for the others."""
+    if isinstance(form, InBox | InDisc):
+        x = np.asarray(obs_part(obs, form.key), dtype=np.float64)[list(form.index)]
+        if isinstance(form, InBox):
+            low, high = form.low, form.high
+            return x, _through(form, geodesic, lambda y: _to_box(y, low, high))
+        center, radius = form.center, form.radius
+        return x, _through(form, geodesic, lambda y: _to_disc(y, center, radius))
+    if isinstance(form, Guided):
+        origin = vector(form.origin.read(obs, info, moment))
+        target = vector(form.target.read(obs, info, moment))
+        if origin is None or target is None or origin.shape != target.shape:
+            return None
+        straight = _to_point(target)
+        at_target = float(np.sqrt(np.sum((origin - target) ** 2))) == 0.0
+        field = None if geodesic is None or at_target else geodesic.toward(form, target)
+        if field is None:
+            return origin, straight
+        return origin, lambda y: max(field.at(y), straight(y))
+    if not isinstance(form, Value) or not isinstance(form.test, Region | Equals):
         return None
     value = form.source.read(obs, info, moment)
     if value is MISSING:
         return None
+    test = form.test
     if isinstance(test, Region):
-        straight = _region(test, value)
-        if geodesic is None or straight is None:
-            return straight
-        return geodesic.form_distance(form, test.point(value), straight)
-    if isinstance(test, Bound):
-        x = vector(value)
-        if x is None or x.size != 1:
+        read = test.point(value)
+        if read is None:
             return None
-        number = float(x.reshape(()))
-        gap = 0.0
-        if test.below is not None:
-            gap = max(gap, number - test.below)
-        if test.above is not None:
-            gap = max(gap, test.above - number)
-        return gap
-    target = vector(test.expected)
-    found = vector(value)
+        if test.radius >= 0.0:
+            center, radius = test.center, test.radius
+            return read, _through(form, geodesic, lambda y: _to_disc(y, center, radius))
+        low, high = test.low, test.high
+        return read, _through(form, geodesic, lambda y: _to_box(y, low, high))
+    target, found = vector(test.expected), vector(value)
     if target is None or found is None or target.shape != found.shape:
         return None
-    straight = float(np.sqrt(np.sum((found - target) ** 2)))
-    return straight if geodesic is None else geodesic.form_distance(form, found, straight)
+    return found, _through(form, geodesic, _to_point(target))
 
 
-def _guided(
-    form: Guided, obs: Any, info: Mapping[str, Any], moment: Moment, geodesic: Geodesic | None
-) -> float | None:
-    if form.form.holds(obs, info, moment):
-        return 0.0
-    origin = vector(form.origin.read(obs, info, moment))
-    target = vector(form.target.read(obs, info, moment))
-    if origin is None or target is None or origin.shape != target.shape:
+def _to_point(target: Point) -> Measure:
+    return lambda y: float(np.sqrt(np.sum((y - target) ** 2)))
+
+
+def _through(form: Form, geodesic: Geodesic | None, straight: Measure) -> Measure:
+    """``straight``, or the distance through free space where ``geodesic`` is given."""
+    if geodesic is None:
+        return straight
+    return lambda y: geodesic.form_distance(form, y, straight(y))
+
+
+def _bound(form: Value, obs: Any, info: Mapping[str, Any], moment: Moment) -> float | None:
+    """How far a value's number is past its ``below`` / ``above``."""
+    test = form.test
+    assert isinstance(test, Bound)
+    value = form.source.read(obs, info, moment)
+    x = None if value is MISSING else vector(value)
+    if x is None or x.size != 1:
         return None
-    straight = float(np.sqrt(np.sum((origin - target) ** 2)))
-    field = None if geodesic is None or straight == 0.0 else geodesic.toward(form, target)
-    return straight if field is None else max(field.at(origin), straight)
+    number = float(x.reshape(()))
+    gap = 0.0
+    if test.below is not None:
+        gap = max(gap, number - test.below)
+    if test.above is not None:
+        gap = max(gap, test.above - number)
+    return gap
 
 
 def form_distance(
@@ -110,18 +142,45 @@ def form_distance(
 ) -> float | None:
     """How far ``(obs, info)`` at ``moment`` is from where ``form`` holds (module docstring),
     through free space where ``geodesic`` knows the env's occupancy."""
-    if isinstance(form, Guided):
-        return _guided(form, obs, info, moment, geodesic)
-    if isinstance(form, Value):
-        return _value(form, obs, info, moment, geodesic)
-    if isinstance(form, InBox | InDisc):
-        x = np.asarray(obs_part(obs, form.key), dtype=np.float64)[list(form.index)]
-        if isinstance(form, InBox):
-            straight = _to_box(x, form.low, form.high)
-        else:
-            straight = _to_disc(x, form.center, form.radius)
-        return straight if geodesic is None else geodesic.form_distance(form, x, straight)
-    return None
+    if isinstance(form, Guided) and form.form.holds(obs, info, moment):
+        return 0.0
+    if isinstance(form, Value) and isinstance(form.test, Bound):
+        return _bound(form, obs, info, moment)
+    measured = _measure(form, obs, info, moment, geodesic)
+    if measured is None:
+        return None
+    point, measure = measured
+    return measure(point)
+
+
+def form_direction(
+    form: Form,
+    obs: Any,
+    info: Mapping[str, Any],
+    moment: Moment = NO_MOMENT,
+    geodesic: Geodesic | None = None,
+) -> Point | None:
+    """The unit vector, in the space of the position ``form`` reads, along which its distance
+    (:func:`form_distance`) falls fastest: the way toward where it holds, through free space
+    where ``geodesic`` is given (central differences of the distance, steps of a thousandth of
+    the position's size, at least 0.001); zeros where it holds or the distance is flat;
+    ``None`` for a form with no position."""
+    measured = _measure(form, obs, info, moment, geodesic)
+    if measured is None:
+        return None
+    point, measure = measured
+    point = np.asarray(point, dtype=np.float64).reshape(-1)
+    direction = np.zeros(point.size)
+    if (isinstance(form, Guided) and form.form.holds(obs, info, moment)) or measure(point) == 0:
+        return direction
+    step = 1e-3 * max(1.0, float(np.abs(point).max(initial=0.0)))
+    for i in range(point.size):
+        ahead, behind = point.copy(), point.copy()
+        ahead[i] += step
+        behind[i] -= step
+        direction[i] = measure(behind) - measure(ahead)
+    norm = float(np.sqrt(np.sum(direction * direction)))
+    return direction / norm if norm > 1e-12 else np.zeros(point.size)
 
 
 def distances(
@@ -155,3 +214,28 @@ def has_distance(labeller: Labeller, proposition: str) -> bool:
         or (isinstance(f, Value) and isinstance(f.test, Region | Equals | Bound))
         for f in forms
     )
+
+
+def directions(
+    labeller: Labeller,
+    propositions: Sequence[str],
+    obs: Any,
+    info: Mapping[str, Any],
+    moment: Moment = NO_MOMENT,
+    geodesic: Geodesic | None = None,
+) -> list[Point | None]:
+    """Per proposition of ``propositions``, the direction (:func:`form_direction`) of its
+    nearest form that has one (``None`` where none has)."""
+    index = {p: i for i, p in enumerate(labeller.propositions)}
+    found: list[Point | None] = []
+    for p in propositions:
+        best: tuple[float, Point] | None = None
+        for form in labeller.forms[index[p]]:
+            d = form_distance(form, obs, info, moment, geodesic)
+            if d is None or (best is not None and d >= best[0]):
+                continue
+            way = form_direction(form, obs, info, moment, geodesic)
+            if way is not None:
+                best = (d, way)
+        found.append(None if best is None else best[1])
+    return found

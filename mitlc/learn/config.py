@@ -262,6 +262,11 @@ class TrainConfig:
     """The env distance past which a proposition's pull is flat (0: in a finite world the
     longest distance in steps, in an env the largest distance at a first reset with the run's
     seed, resolved when the run is set up)."""
+    guide: bool = False
+    """Show the policy the way the shaping potential pulls (the SB3 backends on env worlds
+    whose labels have regions or positions): a unit vector toward the nearest region that
+    advances the task, through free space where the env's occupancy is known
+    (:meth:`mitlc.gym.guide.TaskGuide.way`; the wrapper's ``guide=True``)."""
     task_obs: TaskObs = "auto"
     """What the deep learners and the SB3 backends see of the task: ``state``, a one-hot of the
     digital automaton's state; ``clocks``, the T-LDGBA's location (one-hot) and its clocks

@@ -98,6 +98,11 @@ def prepare(
     if learned_by is not None and config.algo not in learned_by:
         raise ConfigError(f"{world_path}: --algo {config.algo} does not learn this world; use "
                           f"{' or '.join(learned_by)}")  # fmt: skip
+    if config.guide and not config.algo.startswith("sb3-"):
+        raise ConfigError(
+            f"{world_path}: guide (the way the shaping pulls, shown to the policy) is read by "
+            f"the SB3 backends (--algo sb3-sac, sb3-ppo, ...), not by --algo {config.algo}"
+        )
     if not is_finite(world):
         if getattr(world, "costs", None) is not None:
             raise ConfigError(
@@ -109,7 +114,7 @@ def prepare(
                 f"{world_path}: a shield is computed from the exact product, which a world "
                 "that is not finite does not have (drop --shield / --shield-violation)"
             )
-        if config.shaping and not config.shaping_reach:
+        if (config.shaping or config.guide) and not config.shaping_reach:
             config = replace(config, shaping_reach=_first_reach(world, automaton, config.seed))
         return Setting(world_path, world, automaton, config)
     product = build_product(world, automaton, deadline=clock.at("the product"))

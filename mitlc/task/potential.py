@@ -144,6 +144,18 @@ class TaskPotential:
         phi: FloatArray = self.offset - far
         return phi
 
+    def leading(self, q: int, env_distances: FloatArray) -> int | None:
+        """The proposition whose pull :meth:`at` counts in automaton state ``q`` at a position
+        ``env_distances[i]`` from each proposition: the nearest that advances ``q`` (the
+        first of equals; past the reach, where every pull is flat, still the nearest);
+        ``None`` where none does or none has a finite distance."""
+        distances = np.asarray(env_distances, np.float64)
+        known = ~np.isnan(distances)
+        chosen = np.where(self.advancing[q] & known, np.where(known, distances, 0.0), np.inf)
+        if chosen.size == 0 or not np.isfinite(chosen.min()):
+            return None
+        return int(chosen.argmin())
+
     @staticmethod
     def _near(advancing: BoolArray2, env_distances: FloatArray, reach: float) -> FloatArray:
         """The pull (:func:`pull`) of the nearest proposition that advances, over the last axis

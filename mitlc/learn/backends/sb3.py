@@ -137,8 +137,10 @@ def wrapped_env(setting: Setting) -> Any:
     config = setting.config
     clocks = clocks_shown(setting.automaton, config.task_obs)
     options: dict[str, Any] = {"task_obs": "clocks" if clocks else "state"}
-    if config.shaping:
+    if config.shaping or config.guide:
         options["potential"] = config.shaping_reach
+    if config.guide:
+        options["guide"] = True
     if setting.tables is not None and setting.tables.shield is not None:
         options["shield"], options["product"] = setting.tables.shield, setting.product
         options["shield_audit"] = not setting.tables.shield_enforced

@@ -1,0 +1,159 @@
+"""The way the shaping pulls, shown to the policy (the task wrapper's ``guide=True``,
+``mitlc.gym.guide.TaskGuide.way``, ``mitlc.labels.distance.form_direction``): its direction on
+hand-made regions and around a U-shaped wall, which proposition it points to, its place in the
+observation, the errors, gymnasium's checker, and a controller that only follows it doing the
+PointMaze Medium task."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium import spaces
+from gymnasium.utils.env_checker import check_env
+
+from mitlc.automata import translate
+from mitlc.gym import TaskWrapper
+from mitlc.gym.arguments import TaskWrapperError, TaskWrapperTypeError
+from mitlc.labels import compile_labels
+from mitlc.labels.distance import form_direction
+from mitlc.labels.occupancy import Occupancy
+from mitlc.syntax import parse
+from mitlc.task.potential import task_potential
+
+U_MAZE = [[0, 0, 0], [1, 1, 0], [0, 0, 0]]
+"""A U: from the top-left cell the straight line to the bottom-left one crosses the wall."""
+
+
+class Point(gym.Env[np.ndarray, np.ndarray]):
+    """A point in the 3 x 3 square that moves by its action (clipped to 0.3 a step), stopped
+    by the U's wall."""
+
+    def __init__(self, start: tuple[float, float] = (0.5, 2.5)) -> None:
+        self.observation_space = spaces.Box(0.0, 3.0, (2,), dtype=np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float64)
+        self.start = np.array(start)
+        self.at = self.start.copy()
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.at = self.start.copy()
+        return self.at.copy(), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        moved = np.clip(self.at + 0.3 * np.clip(action, -1, 1), 0.0, 2.999)
+        if not (1.0 <= moved[1] < 2.0 and moved[0] < 2.0):  # not inside the wall
+            self.at = moved
+        return self.at.copy(), 0.0, False, False, {}
+
+
+LABELS = {
+    "a": {"box": {"index": [0, 1], "low": [0.0, 0.0], "high": [1.0, 1.0]}},  # bottom-left
+    "b": {"disc": {"index": [0, 1], "center": [2.5, 2.5], "radius": 0.3}},  # top-right
+}
+
+
+def _wrapped(spec: str, **options: Any) -> TaskWrapper:
+    options.setdefault("occupancy", Occupancy.from_rows(U_MAZE, 1.0, (0.0, 0.0), refine=4))
+    options.setdefault("potential", 0.0)
+    return TaskWrapper(Point(), spec, LABELS, horizon=60, **options)
+
+
+def test_a_straight_direction_points_at_the_region() -> None:
+    labels = compile_labels(LABELS)
+    disc, box = labels.forms[1][0], labels.forms[0][0]
+    way = form_direction(disc, np.array([0.5, 2.5]), {})
+    assert way == pytest.approx([1.0, 0.0], abs=1e-6)
+    way = form_direction(box, np.array([2.0, 2.0]), {})  # toward the box's corner (1, 1)
+    assert way == pytest.approx(-np.ones(2) / np.sqrt(2), abs=1e-6)
+    assert form_direction(box, np.array([0.5, 0.5]), {}) == pytest.approx([0.0, 0.0])
+    assert form_direction(box, np.array([1.5, 0.5]), {}) == pytest.approx([-1.0, 0.0])
+
+
+def test_the_way_goes_around_the_wall_not_into_it() -> None:
+    env = _wrapped("F a", guide=True)
+    obs, _ = env.reset(seed=0)
+    assert obs["guide"] == pytest.approx([1.0, 0.0], abs=0.05)  # right, along the top row
+    straight = _wrapped("F a", guide=True, occupancy="none")
+    obs, _ = straight.reset(seed=0)
+    assert obs["guide"] == pytest.approx([0.0, -1.0], abs=1e-6)  # down, into the wall
+
+
+def test_following_the_way_does_the_task_and_the_straight_line_does_not() -> None:
+    for occupancy, done in (("auto", True), ("none", False)):
+        options: dict[str, Any] = {} if occupancy == "auto" else {"occupancy": "none"}  # a grid
+        env = _wrapped("F[0,40] a", guide=True, **options)
+        obs, info = env.reset(seed=0)
+        for _ in range(60):
+            obs, _, terminated, truncated, info = env.step(obs["guide"])
+            if terminated or truncated:
+                break
+        assert info["success"] is done
+
+
+def test_the_way_points_to_the_proposition_the_potential_pulls_toward() -> None:
+    automaton = translate(parse("F (b & F a)"))  # b first: a does not advance the start
+    shaping = task_potential(automaton)
+    q0 = automaton.initial
+    names = list(automaton.propositions)
+    far_b = np.array([1.0 if p == "a" else 5.0 for p in names])  # a nearer, but b is owed
+    assert shaping.leading(q0, far_b) == names.index("b")
+    env = _wrapped("F (b & F a)", guide=True)
+    obs, _ = env.reset(seed=0)
+    assert obs["guide"] == pytest.approx([1.0, 0.0], abs=0.05)  # b is to the right
+    assert shaping.leading(q0, np.array([np.nan, np.nan])) is None
+
+
+def test_the_way_is_the_last_part_of_the_flat_observation_and_zero_once_decided() -> None:
+    env = _wrapped("F a", guide=True, flatten=True)
+    space = env.observation_space
+    assert isinstance(space, spaces.Box)
+    assert list(space.low[-2:]) == [-1.0, -1.0] and list(space.high[-2:]) == [1.0, 1.0]
+    obs, _ = env.reset(seed=0)
+    assert obs[-2:] == pytest.approx([1.0, 0.0], abs=0.05)
+    plain = _wrapped("F a", flatten=True)
+    assert plain.observation_space.shape[0] == space.shape[0] - 2  # type: ignore[index]
+
+
+def test_check_env_passes_with_the_way() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "different from the unwrapped version"
+        check_env(_wrapped("F[0,40] a & F[0,50] b", guide=True), skip_render_check=True)
+
+
+def test_errors() -> None:
+    with pytest.raises(TaskWrapperError, match="guide: the way points along"):
+        _wrapped("F a", guide=True, potential=None)
+    with pytest.raises(TaskWrapperTypeError, match="guide: expected True or False"):
+        _wrapped("F a", guide="yes")
+    obs_labels = {"a": {"obs": [0]}}
+    env = gym.make("FrozenLake-v1")
+    with pytest.raises(TaskWrapperTypeError, match="no declared label has a region"):
+        TaskWrapper(env, "F a", obs_labels, horizon=10, potential=0.0, guide=True)
+
+
+def test_guide_is_refused_by_learners_that_do_not_read_it(tmp_path: Any) -> None:
+    from mitlc.learn.config import ConfigError, TrainConfig
+    from mitlc.learn.setting import prepare
+
+    with pytest.raises(ConfigError, match=r"guide .* SB3 backends"):
+        prepare("specs/paper/case1.yaml", TrainConfig(algo="dqn", guide=True))
+
+
+def test_a_controller_that_follows_the_way_does_the_pointmaze_medium_task() -> None:
+    pytest.importorskip("gymnasium_robotics")
+    from mitlc.worlds.door import open_world
+
+    world = open_world("specs/envs/pointmaze-medium.yaml")
+    env = world.task_env(translate(parse(world.spec)), potential=0.0, flatten=True, guide=True)
+    obs, info = env.reset(seed=0)
+    for _ in range(world.horizon):
+        obs, _, terminated, truncated, info = env.step(np.clip(2.0 * obs[-2:], -1.0, 1.0))
+        if terminated or truncated:
+            break
+    assert info["success"] is True
