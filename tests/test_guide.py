@@ -157,3 +157,25 @@ def test_a_controller_that_follows_the_way_does_the_pointmaze_medium_task() -> N
         if terminated or truncated:
             break
     assert info["success"] is True
+
+
+def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any) -> None:
+    pytest.importorskip("gymnasium_robotics")
+    pytest.importorskip("stable_baselines3")
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    out = tmp_path / "run"
+    world = "specs/envs/pointmaze-medium.yaml"
+    small = ["--set", "sb3.steps=300", "--set", "eval_episodes=2"]
+    small += ["--set", "sb3.learning_starts=50"]
+    runner = CliRunner()
+    result = runner.invoke(app, ["train", world, "--out", str(out), *small])
+    assert result.exit_code == 0, result.output
+    assert '"guide": true' in (out / "config.json").read_text()
+    result = runner.invoke(app, ["eval", str(out), "--episodes", "2", "--json"])
+    assert result.exit_code == 0, result.output
+    more = ["--set", "sb3.steps=400", "--set", "eval_episodes=2"]
+    result = runner.invoke(app, ["train", world, "--out", str(out), "--resume", *more])
+    assert result.exit_code == 0, result.output

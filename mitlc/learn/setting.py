@@ -271,7 +271,11 @@ def task_vector_of(setting: Setting, num_envs: int, seed: int, *, flatten: bool 
     :class:`~mitlc.learn.envs.envvec.VectorTask` whose first env is reset with ``seed``; with
     shaping on, the wrappers report the task's potential."""
     config = setting.config
-    options = {"potential": config.shaping_reach} if config.shaping else {}
+    options: dict[str, Any] = {}
+    if config.shaping or config.guide:
+        options["potential"] = config.shaping_reach
+    if config.guide:
+        options["guide"] = True
     envs = [
         task_env(setting.world, setting.automaton, flatten=flatten, **options)
         for _ in range(num_envs)

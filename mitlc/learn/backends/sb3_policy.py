@@ -48,6 +48,9 @@ class SB3Policy(Policy):
         self.net, self.encoder = net, encoder
         self.tables = setting.tables if isinstance(setting, Setting) else None
         self.dqn = setting.config.algo == "sb3-dqn"
+        self.guide = setting.config.guide
+        """The policy reads the way the shaping pulls, last in its input (the wrapper's flat
+        observation with ``guide=True``)."""
         self.continuous = isinstance(getattr(net, "action_space", None), spaces.Box)
         """Continuous actions: the policy acts as SB3's ``predict(deterministic=True)`` (the
         mode of PPO's distribution clipped to the bounds; SAC's and TD3's actor, rescaled)."""
@@ -63,6 +66,11 @@ class SB3Policy(Policy):
     def act(self, env: Episodes) -> IntArray:
         """The greedy valid action of each episode (continuous actions: SB3's ``predict``)."""
         x = self.encoder(env.observation, env.automaton, env.mask)
+        if self.guide:
+            way = getattr(env, "guide", None)
+            if way is None:
+                raise RunError("guide: the episodes do not show the way the policy reads")
+            x = torch.cat([x, torch.as_tensor(way, dtype=x.dtype).reshape(len(x), -1)], dim=1)
         if self.continuous:
             actions, _ = self.net.predict(x.numpy(), deterministic=True)
             return cast("IntArray", actions)

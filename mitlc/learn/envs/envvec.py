@@ -228,6 +228,9 @@ class VectorTask:
     def _take(self, obs: dict[str, Any], infos: dict[str, Any]) -> None:
         """The episodes' current view after a reset or a step."""
         self.observation, self.automaton, self.mask = self._view(obs, copy=False)
+        way = obs.get("guide")
+        self.guide = None if way is None else np.asarray(way, dtype=np.float32)
+        """The way the shaping pulls, where the wrappers show it (``guide=True``)."""
         mask = infos.get("action_mask")
         self.valid = np.asarray(mask, dtype=np.bool_) if mask is not None else self._all_valid()
         product = infos.get("product_state")
