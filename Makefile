@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: system-deps demo test verify bench bench-check bench-shield bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-envs bench-sweep bench-teams lint docs golden clean
+.PHONY: system-deps demo test verify bench bench-check bench-shield bench-learn bench-throughput bench-bounded bench-task bench-sb3 bench-envs bench-sweep bench-teams lint docs docs-figures golden clean
 
 $(STAMP): pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
@@ -40,11 +40,24 @@ test: system-deps lint docs
 # The documentation site (Sphinx, furo, MyST) under docs/_build/html, from a clean tree each time:
 # warnings are errors, cross-references nitpicky, internal links checked; the CLI reference is
 # generated from the Typer app (docs/cli.md) and the API reference from the docstrings. No network.
-docs: $(STAMP)
+docs: $(STAMP) docs-figures
 	$(BIN)/ruff check docs/conf.py docs/_ext
 	$(BIN)/mypy --strict docs/conf.py docs/_ext
 	rm -rf docs/_build/html docs/_build/doctrees
 	$(BIN)/sphinx-build -q -W --keep-going -n -b html -d docs/_build/doctrees docs docs/_build/html
+
+# The site's figures that come from shipped examples, drawn again (about 10 s, so `make docs`
+# runs it first; seeded, so the same pictures): case 1's T-LDGBA (mitlc render), five greedy
+# rollouts of a Q-learning run on case 1 (mitlc train, mitlc plot), and PointMaze Medium's
+# distances (docs/figures/geodesic_distances.py). The learning curves of highway and DoorKey
+# (docs/envs.md) come from trainings of minutes each and are not redrawn here.
+docs-figures: $(STAMP)
+	$(BIN)/mitlc render specs/paper/case1.mitl -o docs/figures/case1-automaton.png
+	rm -rf build/docs-figures/case1-q
+	$(BIN)/mitlc train specs/paper/case1.yaml --out build/docs-figures/case1-q -q
+	$(BIN)/mitlc plot build/docs-figures/case1-q
+	cp build/docs-figures/case1-q/trajectories.png docs/figures/case1-trajectories.png
+	$(BIN)/python docs/figures/geodesic_distances.py
 
 # Longer seeded checks (the slow marker, excluded from `make test`): 240,000 (formula, lasso)
 # pairs against the reference semantics and 6,000 formulas against Spot (about 5 minutes).
