@@ -6,6 +6,7 @@ PointMaze Medium task."""
 
 from __future__ import annotations
 
+import json
 import warnings
 from typing import Any
 
@@ -168,14 +169,44 @@ def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any) -> None:
 
     out = tmp_path / "run"
     world = "specs/envs/pointmaze-medium.yaml"
-    small = ["--set", "sb3.steps=300", "--set", "eval_episodes=2"]
-    small += ["--set", "sb3.learning_starts=50"]
+    small = ["--set", "sb3.steps=340", "--set", "eval_episodes=2"]
+    small += ["--set", "sb3.learning_starts=50", "--set", "sb3.guide_warmup=340"]
     runner = CliRunner()
     result = runner.invoke(app, ["train", world, "--out", str(out), *small])
     assert result.exit_code == 0, result.output
     assert '"guide": true' in (out / "config.json").read_text()
+    # acting along the way for all 340 steps: both episodes that ended did the task
+    last = json.loads((out / "metrics.jsonl").read_text().splitlines()[-1])
+    assert last["episodes"] >= 2 and last["success_rate"] == 1.0
     result = runner.invoke(app, ["eval", str(out), "--episodes", "2", "--json"])
     assert result.exit_code == 0, result.output
     more = ["--set", "sb3.steps=400", "--set", "eval_episodes=2"]
     result = runner.invoke(app, ["train", world, "--out", str(out), "--resume", *more])
     assert result.exit_code == 0, result.output
+
+
+def test_acting_along_the_way_pushes_toward_it_within_the_bounds() -> None:
+    from mitlc.learn.backends.sb3_guided import way_action, way_size_problem
+
+    rng = np.random.default_rng(0)
+    way = np.tile([[1.0, 0.0]], (2000, 1))
+    actions = way_action(way, rng)
+    assert actions.shape == (2000, 2) and np.all(np.abs(actions) <= 1.0)
+    assert actions[:, 0].mean() > 0.99 and abs(actions[:, 1].mean()) < 0.05
+    assert 0.25 < actions[:, 1].std() < 0.35  # the noise
+    assert way_size_problem((2,), 2) is None
+    assert "action has shape (4,)" in str(way_size_problem((4,), 2))
+
+
+def test_acting_along_the_way_needs_the_way_and_an_off_policy_learner(tmp_path: Any) -> None:
+    pytest.importorskip("gymnasium_robotics")
+    from typer.testing import CliRunner
+
+    from mitlc.cli import app
+
+    world = "specs/envs/pointmaze-medium.yaml"
+    for extra in (["--set", "guide=false"], ["--algo", "sb3-ppo"]):
+        out = tmp_path / extra[-1]
+        args = ["train", world, "--out", str(out), "--set", "sb3.steps=100", *extra]
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 1 and "guide_warmup acts along the way" in result.output

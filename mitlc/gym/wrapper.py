@@ -336,6 +336,11 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         return self._guide.reach if self._guide is not None else 0.0
 
     @property
+    def way_size(self) -> int:
+        """The number of values of the way the observation shows (``guide=True``; 0: none)."""
+        return self._guide.pointing if self._guide is not None else 0
+
+    @property
     def has_potential(self) -> bool:
         """Whether the wrapper was made with ``potential`` (and reports it)."""
         return self._guide is not None

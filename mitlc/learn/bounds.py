@@ -262,6 +262,7 @@ TRAINING: dict[str, Bound] = {
         "transitions made and stored each env step: 4,096 a step fill SB3's largest memory "
         "(1,000,000) in 245 steps")),
     "sb3.crm_share": Bound(0, 1, _UNIT_WHY),
+    "sb3.guide_warmup": Bound(0, BUDGET, _COUNTER_WHY),
 }
 """Every numeric training setting by its path within ``training``."""
 

@@ -216,6 +216,10 @@ class SB3Config:
     exploration_fraction: float = 0.1
     exploration_final_eps: float = 0.05
     target_update_interval: int = 10_000
+    guide_warmup: int = 0
+    """SAC, TD3 with ``guide``: the env steps at the run's start in which it acts along the way
+    the shaping pulls, with noise, instead of by its policy (:mod:`mitlc.learn.backends.sb3_guided`;
+    envs whose action moves the labels' position along the same axes); 0: none."""
     crm: bool = False
     """DQN, SAC, TD3: counterfactual experience in the replay memory, every transition's over
     the task's other states (:mod:`mitlc.learn.backends.sb3_crm`), shaped as the run is."""

@@ -315,6 +315,8 @@ def _train(
     except (ValueError, TypeError, AssertionError, MemoryError) as err:
         where = setting.world_path
         raise RunError(f"{where}: cannot build {config.algo} ({one_line(err)})") from None
+    if s.guide_warmup:
+        _act_along_the_way(model, setting, venv)
     state, tally = ModelState(model, config), Tally()
     if resume:
         loaded = restore(directory, {"model": state, "tally": tally},
@@ -444,3 +446,19 @@ class _Run:
                 return run.on_step(self.num_timesteps, dones, infos)
 
         return Callback()
+
+
+def _act_along_the_way(model: Any, setting: Setting, venv: Any) -> None:
+    """``sb3.guide_warmup``: the first steps act along the way (:mod:`.sb3_guided`)."""
+    from mitlc.learn.backends.sb3_guided import follow_the_way, way_size_problem
+
+    config = setting.config
+    where = setting.world_path
+    if not config.guide or config.algo not in ("sb3-sac", "sb3-td3"):
+        raise RunError(f"{where}: sb3.guide_warmup acts along the way: it needs guide: true "
+                       f"and --algo sb3-sac or sb3-td3")  # fmt: skip
+    pointing = int(venv.envs[0].get_wrapper_attr("way_size"))
+    problem = way_size_problem(tuple(venv.action_space.shape or ()), pointing)
+    if problem is not None:
+        raise RunError(f"{where}: {problem}")
+    follow_the_way(model, config.sb3.guide_warmup, pointing, config.seed)
