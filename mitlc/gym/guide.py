@@ -33,7 +33,7 @@ import numpy as np
 
 from mitlc.gym.arguments import TaskWrapperTypeError
 from mitlc.labels import Labeller
-from mitlc.labels.distance import Point, directions, distances
+from mitlc.labels.distance import Point, form_direction, nearest_forms
 from mitlc.labels.forms import Guided, InBox, InDisc
 from mitlc.labels.geodesic import Geodesic, has_region, occupancy_source
 from mitlc.labels.occupancy import Occupancy
@@ -142,14 +142,18 @@ class TaskGuide:
         if geodesic is not None and (reset or geodesic.occupancy is None):
             geodesic.refresh(self._env)
         if isinstance(labels, Labeller):
-            found = distances(labels, self.propositions, obs, info, moment, geodesic)
+            near = nearest_forms(labels, self.propositions, obs, info, moment, geodesic)
+            found = [None if n is None else n[0] for n in near]
+            if self.pointing:
+                self.toward = [
+                    None if n is None else form_direction(n[1], obs, info, moment, geodesic)
+                    for n in near
+                ]
         elif hasattr(labels, "distances"):  # labels read elsewhere than obs (a plane's)
             more = {} if geodesic is None else {"geodesic": geodesic}
             found = labels.distances(self.propositions, obs, info, moment, **more)
         else:
             found = []
-        if self.pointing and isinstance(labels, Labeller):
-            self.toward = directions(labels, self.propositions, obs, info, moment, geodesic)
         if found and not self.reach:
             known = [d for d in found if d is not None and d > 0.0]
             self.reach = max(known, default=1.0)

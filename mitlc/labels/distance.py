@@ -183,6 +183,29 @@ def form_direction(
     return direction / norm if norm > 1e-12 else np.zeros(point.size)
 
 
+def nearest_forms(
+    labeller: Labeller,
+    propositions: Sequence[str],
+    obs: Any,
+    info: Mapping[str, Any],
+    moment: Moment = NO_MOMENT,
+    geodesic: Geodesic | None = None,
+) -> list[tuple[float, Form] | None]:
+    """Per proposition of ``propositions``, the least distance among its forms that have one
+    and the first form at it (``None`` where none has); through free space where ``geodesic``
+    is given."""
+    index = {p: i for i, p in enumerate(labeller.propositions)}
+    found: list[tuple[float, Form] | None] = []
+    for p in propositions:
+        best: tuple[float, Form] | None = None
+        for form in labeller.forms[index[p]]:
+            d = form_distance(form, obs, info, moment, geodesic)
+            if d is not None and (best is None or d < best[0]):
+                best = (d, form)
+        found.append(best)
+    return found
+
+
 def distances(
     labeller: Labeller,
     propositions: Sequence[str],
@@ -192,17 +215,9 @@ def distances(
     geodesic: Geodesic | None = None,
 ) -> list[float | None]:
     """Per proposition of ``propositions``, the least distance among its forms that have one
-    (``None`` where none has); through free space where ``geodesic`` is given."""
-    index = {p: i for i, p in enumerate(labeller.propositions)}
-    found: list[float | None] = []
-    for p in propositions:
-        known = [
-            d
-            for form in labeller.forms[index[p]]
-            if (d := form_distance(form, obs, info, moment, geodesic)) is not None
-        ]
-        found.append(min(known) if known else None)
-    return found
+    (``None`` where none has): :func:`nearest_forms`' distances."""
+    near = nearest_forms(labeller, propositions, obs, info, moment, geodesic)
+    return [None if n is None else n[0] for n in near]
 
 
 def has_distance(labeller: Labeller, proposition: str) -> bool:
@@ -214,28 +229,3 @@ def has_distance(labeller: Labeller, proposition: str) -> bool:
         or (isinstance(f, Value) and isinstance(f.test, Region | Equals | Bound))
         for f in forms
     )
-
-
-def directions(
-    labeller: Labeller,
-    propositions: Sequence[str],
-    obs: Any,
-    info: Mapping[str, Any],
-    moment: Moment = NO_MOMENT,
-    geodesic: Geodesic | None = None,
-) -> list[Point | None]:
-    """Per proposition of ``propositions``, the direction (:func:`form_direction`) of its
-    nearest form that has one (``None`` where none has)."""
-    index = {p: i for i, p in enumerate(labeller.propositions)}
-    found: list[Point | None] = []
-    for p in propositions:
-        best: tuple[float, Point] | None = None
-        for form in labeller.forms[index[p]]:
-            d = form_distance(form, obs, info, moment, geodesic)
-            if d is None or (best is not None and d >= best[0]):
-                continue
-            way = form_direction(form, obs, info, moment, geodesic)
-            if way is not None:
-                best = (d, way)
-        found.append(None if best is None else best[1])
-    return found
