@@ -210,3 +210,12 @@ def test_acting_along_the_way_needs_the_way_and_an_off_policy_learner(tmp_path: 
         args = ["train", world, "--out", str(out), "--set", "sb3.steps=100", *extra]
         result = CliRunner().invoke(app, args)
         assert result.exit_code == 1 and "guide_warmup acts along the way" in result.output
+
+
+def test_guide_is_refused_on_a_team_env() -> None:
+    pytest.importorskip("mpe2")
+    from mitlc.learn.config import ConfigError, TrainConfig
+    from mitlc.learn.setting import prepare
+
+    with pytest.raises(ConfigError, match="not on a team's"):
+        prepare("specs/teams/mpe-spread.yaml", TrainConfig(algo="sb3-ppo", guide=True))

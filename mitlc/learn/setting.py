@@ -103,6 +103,11 @@ def prepare(
             f"{world_path}: guide (the way the shaping pulls, shown to the policy) is read by "
             f"the SB3 backends (--algo sb3-sac, sb3-ppo, ...), not by --algo {config.algo}"
         )
+    if (config.guide or config.sb3.guide_warmup) and is_team(world):
+        raise ConfigError(
+            f"{world_path}: guide and sb3.guide_warmup are read on a single robot's env, not "
+            "on a team's (PettingZoo) env"
+        )
     if not is_finite(world):
         if getattr(world, "costs", None) is not None:
             raise ConfigError(
