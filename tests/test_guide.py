@@ -160,7 +160,8 @@ def test_a_controller_that_follows_the_way_does_the_pointmaze_medium_task() -> N
     assert info["success"] is True
 
 
-def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any) -> None:
+@pytest.mark.parametrize("crm", ["false", "true"])
+def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any, crm: str) -> None:
     pytest.importorskip("gymnasium_robotics")
     pytest.importorskip("stable_baselines3")
     from typer.testing import CliRunner
@@ -171,6 +172,7 @@ def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any) -> None:
     world = "specs/envs/pointmaze-medium.yaml"
     small = ["--set", "sb3.steps=340", "--set", "eval_episodes=2"]
     small += ["--set", "sb3.learning_starts=50", "--set", "sb3.guide_warmup=340"]
+    small += ["--set", f"sb3.crm={crm}"]  # the counterfactuals show their own way
     runner = CliRunner()
     result = runner.invoke(app, ["train", world, "--out", str(out), *small])
     assert result.exit_code == 0, result.output
@@ -180,7 +182,7 @@ def test_a_run_with_the_way_trains_evaluates_and_resumes(tmp_path: Any) -> None:
     assert last["episodes"] >= 2 and last["success_rate"] == 1.0
     result = runner.invoke(app, ["eval", str(out), "--episodes", "2", "--json"])
     assert result.exit_code == 0, result.output
-    more = ["--set", "sb3.steps=400", "--set", "eval_episodes=2"]
+    more = ["--set", "sb3.steps=400", "--set", "eval_episodes=2", "--set", f"sb3.crm={crm}"]
     result = runner.invoke(app, ["train", world, "--out", str(out), "--resume", *more])
     assert result.exit_code == 0, result.output
 
@@ -219,3 +221,48 @@ def test_guide_is_refused_on_a_team_env() -> None:
 
     with pytest.raises(ConfigError, match="not on a team's"):
         prepare("specs/teams/mpe-spread.yaml", TrainConfig(algo="sb3-ppo", guide=True))
+
+
+def _driven(start: tuple[float, float], spec: str) -> TaskWrapper:
+    occupancy = Occupancy.from_rows(U_MAZE, 1.0, (0.0, 0.0), refine=4)
+    return TaskWrapper(Point(start), spec, LABELS, horizon=60, occupancy=occupancy,
+                       potential=0.0, guide=True, flatten=True)  # fmt: skip
+
+
+def test_a_counterfactual_shows_the_way_of_its_own_task_state() -> None:
+    """``sb3.crm`` with the way: a counterfactual of another task state shows the observation
+    the wrapper shows in that state at that position (a second wrapper driven there), whose
+    way points elsewhere than the experienced state's."""
+    pytest.importorskip("stable_baselines3")
+    from mitlc.learn.backends.sb3_crm import CounterfactualReplay, FlatTask
+
+    spec = "F (b & F a)"  # b first (top-right), then a (bottom-left)
+    lived = _driven((2.5, 0.5), spec)  # the bottom-right cell: b is up, a is left
+    obs, _ = lived.reset(seed=0)
+    still = np.zeros(2)
+    after, reward, terminated, truncated, info = lived.step(still)
+    assert after[-2:] == pytest.approx([0.0, 1.0], abs=0.05)  # b owed: up
+
+    other = _driven((2.5, 2.5), spec)  # on b: its first step reads b
+    other.reset(seed=0)
+    other.step(still)
+    other.env.unwrapped.at = np.array([2.5, 0.5])  # type: ignore[attr-defined]  # then it stands where `lived` stands
+    shown, *_ = other.step(still)
+    assert other.automaton_state != lived.automaton_state
+    assert shown[-2:] == pytest.approx([-1.0, 0.0], abs=0.05)  # a owed: left
+
+    memory = CounterfactualReplay(64, lived.observation_space, lived.action_space, "cpu", 1,
+                                  task=FlatTask.of(lived))  # fmt: skip
+    memory.add(
+        obs[None],
+        after[None],
+        still[None],
+        np.array([reward]),
+        np.array([terminated or truncated]),
+        [info],
+    )
+    made = memory.next_observations[: memory.pos, 0][memory.counterfactual[: memory.pos, 0]]
+    assert len(made) > 0
+    assert any(np.array_equal(row, shown) for row in made)
+    experienced = memory.next_observations[: memory.pos, 0][~memory.counterfactual[: memory.pos, 0]]
+    assert np.array_equal(experienced, after[None])  # the step itself, its way up, as it was

@@ -120,16 +120,35 @@ class TaskGuide:
 
     def way(self, q: int) -> FloatArray:
         """The way (module docstring) in automaton state ``q`` from the position now."""
-        result = np.zeros(self.pointing, dtype=np.float64)
-        leading = self.shaping.leading(q, self.array(self.now)) if self.toward else None
-        found = None if leading is None else self.toward[leading]
-        if found is not None:
+        return self.way_at(q, self.array(self.now), self.ways())
+
+    def ways(self) -> FloatArray:
+        """The directions of the position now, a row per proposition (zero-padded to
+        :attr:`pointing`; ``nan`` where the proposition has none): what :meth:`way_at` reads,
+        and ``info["ways"]`` holds."""
+        result = np.full((len(self.propositions), self.pointing), np.nan)
+        for i, found in enumerate(self.toward):
+            if found is None:
+                continue
             if found.size > self.pointing:
                 raise TaskWrapperTypeError(
                     f"guide: a label's position has {found.size} values, more than the "
                     f"{self.pointing} its declaration gave"
                 )
-            result[: found.size] = found
+            result[i] = 0.0
+            result[i, : found.size] = found
+        return result
+
+    def way_at(self, q: int, distances: FloatArray, ways: FloatArray) -> FloatArray:
+        """The way in automaton state ``q`` at a position ``distances`` (:meth:`array`) from
+        the propositions with their directions ``ways`` (:meth:`ways`): the direction of the
+        one the potential pulls toward (:meth:`TaskPotential.leading`), zeros where none does
+        or it has no direction. The one rule of the way: the observation's, and that of a
+        counterfactual task state in the replay (:mod:`mitlc.learn.backends.sb3_crm`)."""
+        result = np.zeros(self.pointing, dtype=np.float64)
+        leading = self.shaping.leading(q, distances) if len(ways) else None
+        if leading is not None and not np.isnan(ways[leading]).any():
+            result[:] = ways[leading]
         return result
 
     def measure(

@@ -77,7 +77,9 @@ plumbing between the monitor and the environment:
   :class:`mitlc.gym.guide.TaskGuide` keeps them): through free space where the env's occupancy
   is known (``occupancy``: ``"auto"`` reads a maze's ``maze_map``, a MiniGrid grid, a plane's
   obstacles, :mod:`mitlc.labels.geodesic`; or a declared grid), straight lines elsewhere, warned
-  about once (:class:`~mitlc.gym.guide.StraightDistanceWarning`).
+  about once (:class:`~mitlc.gym.guide.StraightDistanceWarning`). Made with ``guide=True``
+  too: ``ways`` and ``ways_left`` (each proposition's direction at those positions, a row each,
+  ``nan`` where it has none; :meth:`TaskWrapper.way_at` reads them).
 
 ``gymnasium.make("mitlc/Task-v0", env_id=..., env_kwargs=..., spec=..., labels=...,
 horizon=...)`` builds the inner env by id and wraps it.
@@ -160,7 +162,9 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         left are from each proposition (:meth:`potential_at` reads them for any task state),
         measured through the free cells of ``occupancy`` (module docstring); with ``guide``
         (and ``potential``) the observation shows the way the potential pulls, a unit vector
-        (:meth:`mitlc.gym.guide.TaskGuide.way`)."""
+        (:meth:`mitlc.gym.guide.TaskGuide.way`), and ``info["ways"]`` / ``info["ways_left"]``
+        each proposition's direction at the two positions (:meth:`way_at` reads them for any
+        task state)."""
         RecordConstructorArgs.__init__(
             self, _disable_deepcopy=True, spec=spec, labels=labels, rewards=rewards,
             horizon=horizon, reward_mode=reward_mode, flatten=flatten,
@@ -340,6 +344,14 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         """The number of values of the way the observation shows (``guide=True``; 0: none)."""
         return self._guide.pointing if self._guide is not None else 0
 
+    def way_at(self, q: int, distances: FloatArray, ways: FloatArray) -> FloatArray:
+        """The way the observation shows in automaton state ``q`` at a position whose
+        ``info["distances"]`` and ``info["ways"]`` are ``distances`` and ``ways``
+        (:meth:`mitlc.gym.guide.TaskGuide.way_at`; ``guide=True``)."""
+        if self._guide is None or not self._guide.pointing:
+            raise TaskWrapperError("way_at: make the wrapper with guide=True")
+        return self._guide.way_at(q, distances, ways)
+
     @property
     def has_potential(self) -> bool:
         """Whether the wrapper was made with ``potential`` (and reports it)."""
@@ -423,6 +435,7 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         monitor, read, env_reward = self.monitor, self._letter, 0.0
         guide = self._guide
         left = guide.now if guide is not None else []
+        left_ways = guide.ways() if guide is not None and guide.pointing else None
         state, marks, new, reward, verdict, decided, success = monitor.step(self._state, read)
         if self._ended:  # the world stays on its last position: the env is not stepped
             obs, env_info = self._env_obs, self._env_info
@@ -452,6 +465,8 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         info["env_reward"] = env_reward
         if guide is not None:
             info["distances_left"] = guide.array(left)
+        if left_ways is not None:
+            info["ways_left"] = left_ways
         return self._observation(obs, state), reward, terminated, truncated, info
 
     def _jump(self, j: int) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -545,4 +560,6 @@ class TaskWrapper(gym.Wrapper[Any, Any, Any, Any], RecordConstructorArgs):
         if self._guide is not None:
             info["distances"] = info["distances_left"] = here = self.distances()
             info["potential"] = self._potential_here(here)
+            if self._guide.pointing:
+                info["ways"] = info["ways_left"] = self._guide.ways()
         return info

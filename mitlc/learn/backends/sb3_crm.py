@@ -29,6 +29,11 @@ counterfactual's reward is shaped as the wrapper would have shaped it in its own
 step's info reports: ``distances_left`` of the position left, ``distances`` of the one
 reached).
 
+**The way** (a run's ``guide``: the observation ends with the way the shaping pulls, which
+depends on the task state): a counterfactual shows the way of its own task state, as the
+wrapper would show it there (:meth:`mitlc.gym.TaskWrapper.way_at`, the one rule of the way,
+from the directions the step's info reports: ``ways_left``, ``ways``).
+
 **Skipped**: the transitions of :meth:`~mitlc.learn.learners.crm_env.EnvCounterfactuals.tells`
 (a jump or an invalid action, an env that has ended). SB3's ``optimize_memory_usage`` is
 refused (each stored transition needs its own next observation). SB3 stores transitions
@@ -65,6 +70,9 @@ from mitlc.worlds.model import BoolArray, IntArray
 
 Flat = npt.NDArray[np.float32]
 FIELDS = ("obs", "next_obs", "action", "reward", "done", "timeout")
+Where = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+"""Per row, the distances to the propositions and their directions (``info["distances"]``,
+``info["ways"]``)."""
 DENSE = 1 << 20
 """The most task states ``(q, frontier)`` that :class:`FlatTask` indexes densely."""
 
@@ -74,10 +82,16 @@ class FlatTask:
     observation, whose task part (after the env's ``view.env_dim`` values) :meth:`observe`
     replaces."""
 
-    def __init__(self, counterfactuals: EnvCounterfactuals, view: TaskObservation) -> None:
+    def __init__(
+        self, counterfactuals: EnvCounterfactuals, view: TaskObservation, wrapper: Any = None
+    ) -> None:
+        """``wrapper``: the task wrapper whose :meth:`~mitlc.gym.TaskWrapper.way_at` gives a
+        task state's way, where the observation shows one (``view.guide``)."""
         if not view.flatten:
             raise CounterfactualError("sb3.crm needs the wrapper's flat observation")
-        self.counterfactuals, self.view = counterfactuals, view
+        if view.guide and wrapper is None:
+            raise CounterfactualError("sb3.crm: the way is shown, but no wrapper gives it")
+        self.counterfactuals, self.view, self._wrapper = counterfactuals, view, wrapper
         space = copy.deepcopy(view.env_space)
         space.seed(0)
         self._reference = space.sample()
@@ -98,13 +112,14 @@ class FlatTask:
         wrapper = task_wrapper(env)
         automaton = wrapper.automaton
         view = TaskObservation.of(wrapper.env.observation_space, "env", wrapper.num_q,
-                                  automaton.num_sets, wrapper.flatten, wrapper.clocks)  # fmt: skip
+                                  automaton.num_sets, wrapper.flatten, wrapper.clocks,
+                                  wrapper.way_size)  # fmt: skip
         if view.space != wrapper.observation_space:
             raise CounterfactualError(
                 f"the wrapper's observation {wrapper.observation_space} is not the layout "
                 f"{view.space} of its parts"
             )
-        return FlatTask(EnvCounterfactuals.of(wrapper, limit), view)
+        return FlatTask(EnvCounterfactuals.of(wrapper, limit), view, wrapper)
 
     def part(self, q: int, frontier: int) -> Flat:
         """The task part of a flat observation in task state ``(q, frontier)``."""
@@ -114,8 +129,28 @@ class FlatTask:
             found = self._parts[(q, frontier)] = np.asarray(whole[self.view.env_dim :])
         return found
 
-    def observe(self, flat: Flat, q: IntArray, frontier: IntArray) -> Flat:
-        """Each row of ``flat`` with its task part that of ``(q[r], frontier[r])``."""
+    def observe(
+        self,
+        flat: Flat,
+        q: IntArray,
+        frontier: IntArray,
+        where: Where | None = None,
+    ) -> Flat:
+        """Each row of ``flat`` with its task part that of ``(q[r], frontier[r])``; where the
+        observation shows the way, that of ``q[r]`` at the position whose distances and
+        directions are ``where[0][r]``, ``where[1][r]`` (``info["distances"]``,
+        ``info["ways"]``)."""
+        out = self._task_parts(flat, q, frontier)
+        if self.view.guide:
+            if where is None:
+                raise CounterfactualError("sb3.crm: the way is shown, but the step gave none")
+            distances, ways = where
+            for r, qr in enumerate(q.tolist()):
+                out[r, -self.view.guide :] = self._wrapper.way_at(qr, distances[r], ways[r])
+        return out
+
+    def _task_parts(self, flat: Flat, q: IntArray, frontier: IntArray) -> Flat:
+        """Each row of ``flat`` with the task part of ``(q[r], frontier[r])`` (no way)."""
         out = np.array(flat, dtype=np.float32, copy=True)
         dim = self.view.env_dim
         if not self._index.size:  # too many task states for a dense index
@@ -300,9 +335,13 @@ class CounterfactualReplay(ReplayBuffer):
         truncated = ~rows.terminated & (steps >= crm.horizon)
         flat = np.asarray(obs).reshape(self.n_envs, -1)
         after = np.asarray(next_obs).reshape(self.n_envs, -1)
+        from_, to = None, None  # where the way is shown: what it is read from
+        if self.task.view.guide:
+            from_ = _where(infos, "distances_left", "ways_left", i)
+            to = _where(infos, "distances", "ways", i)
         return {
-            "obs": self.task.observe(flat[i], rows.q, rows.frontier),
-            "next_obs": self.task.observe(after[i], rows.next_q, rows.next_frontier),
+            "obs": self.task.observe(flat[i], rows.q, rows.frontier, from_),
+            "next_obs": self.task.observe(after[i], rows.next_q, rows.next_frontier, to),
             "action": np.asarray(action).reshape(self.n_envs, self.action_dim)[i],
             "reward": reward.astype(np.float32),
             "done": (rows.terminated | truncated).astype(np.float32),
@@ -326,6 +365,14 @@ class CounterfactualReplay(ReplayBuffer):
             else:  # a jump (or an invalid action): the frontier stays
                 after = MonitorState(q, run.frontier, int(info.get("rounds", 0)), steps)
             self.runs[i] = after if (after.q, after.steps) == (q, steps) else None
+
+
+def _where(infos: list[dict[str, Any]], distances: str, ways: str, rows: IntArray) -> Where:
+    """The distances and directions (info keys ``distances``, ``ways``) of the env of each
+    of ``rows``."""
+    found = [np.array([info[key] for info in infos], dtype=np.float64)[rows]
+             for key in (distances, ways)]  # fmt: skip
+    return found[0], found[1]
 
 
 def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
