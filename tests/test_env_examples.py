@@ -24,6 +24,7 @@ EXAMPLES = {
     "highway.yaml": ("highway_env", ["dqn.episodes=2", "dqn.warmup_steps=16"], 2),
     "pointmaze.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
     "pointmaze-medium.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
+    "pointmaze-large.yaml": ("gymnasium_robotics", ["sb3.steps=256"], 2),
 }
 
 

@@ -146,11 +146,12 @@ def test_guide_is_refused_by_learners_that_do_not_read_it(tmp_path: Any) -> None
         prepare("specs/paper/case1.yaml", TrainConfig(algo="dqn", guide=True))
 
 
-def test_a_controller_that_follows_the_way_does_the_pointmaze_medium_task() -> None:
+@pytest.mark.parametrize("name", ["pointmaze-medium", "pointmaze-large"])
+def test_a_controller_that_follows_the_way_does_the_pointmaze_task(name: str) -> None:
     pytest.importorskip("gymnasium_robotics")
     from mitlc.worlds.door import open_world
 
-    world = open_world("specs/envs/pointmaze-medium.yaml")
+    world = open_world(f"specs/envs/{name}.yaml")
     env = world.task_env(translate(parse(world.spec)), potential=0.0, flatten=True, guide=True)
     obs, info = env.reset(seed=0)
     for _ in range(world.horizon):
