@@ -23,9 +23,9 @@ from mitlc.cli import app
 from mitlc.product.explicit import build_product
 from mitlc.syntax import parse
 from mitlc.worlds import World, WorldError, load_world, read_world_file
+from mitlc.worlds.env_schema import EnvWorldFile
 from mitlc.worlds.gym_world import GymWorldError, NotFiniteError, build_world, letters_of
 from mitlc.worlds.load import read_any_world_file
-from mitlc.worlds.schema import EnvWorldFile
 from tests.conftest import ROOT
 
 GYM = ROOT / "specs" / "gym"

@@ -45,8 +45,8 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.worlds import trust
+from mitlc.worlds.env_schema import Env, WrapperEntry
 from mitlc.worlds.grid import FieldPath
-from mitlc.worlds.schema import Env, WrapperEntry
 
 ENV_ID: FieldPath = ("env", "id")
 

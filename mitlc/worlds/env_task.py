@@ -26,8 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from mitlc.worlds import gym_world
+from mitlc.worlds.env_schema import Env
 from mitlc.worlds.model import Rewards
-from mitlc.worlds.schema import Env
 
 
 @dataclass(frozen=True, slots=True)

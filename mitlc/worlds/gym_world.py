@@ -66,11 +66,12 @@ from mitlc.labels.values import Moment
 from mitlc.limits import MAX_GRID_CELLS
 from mitlc.worlds import env_make
 from mitlc.worlds.env_make import ENV_ID
+from mitlc.worlds.env_schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel
 from mitlc.worlds.grid import FieldPath, Found, render
 from mitlc.worlds.gym_events import EventStates, split_by_events
 from mitlc.worlds.gym_uncertain import Interned, chance_read, drawn_states, observation_kinds
 from mitlc.worlds.model import IntArray, Sparse, World
-from mitlc.worlds.schema import DecodedLabel, Decoding, Env, EnvWorldFile, ObsLabel, show
+from mitlc.worlds.schema import show
 
 ACTION_NAMES: dict[str, tuple[str, ...]] = {
     "FrozenLake": ("left", "down", "right", "up"),

@@ -39,18 +39,9 @@ from pydantic import Field, model_validator
 
 from mitlc.errors import MitlcError
 from mitlc.syntax import ast, parse, to_text
+from mitlc.worlds.env_schema import KwargName, ModuleName
 from mitlc.worlds.model import Rewards
-from mitlc.worlds.schema import (
-    Discount,
-    Horizon,
-    KwargName,
-    ModuleName,
-    Proposition,
-    Reward,
-    SpecRef,
-    WorldName,
-    _Model,
-)
+from mitlc.worlds.schema import Discount, Horizon, Proposition, Reward, SpecRef, WorldName, _Model
 
 LEARNED_BY = ("sb3-ppo", "sb3-dqn")
 """The learners of a PettingZoo world: SB3's, one policy shared by every agent."""

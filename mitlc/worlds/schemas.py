@@ -6,8 +6,9 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from mitlc.worlds.env_schema import EnvWorldFile
 from mitlc.worlds.plane_schema import PlaneWorldFile
-from mitlc.worlds.schema import EnvWorldFile, WorldFile
+from mitlc.worlds.schema import WorldFile
 from mitlc.worlds.team_schema import TeamWorldFile
 
 

@@ -29,17 +29,9 @@ from mitlc.limits import MAX_WORLD_BYTES
 from mitlc.syntax import atoms, parse, read_spec
 from mitlc.worlds import safe_yaml
 from mitlc.worlds.costs import Costs, read_costs
+from mitlc.worlds.env_schema import ENV_MODELS, EnvWorldFile
 from mitlc.worlds.grid import FieldPath, render
-from mitlc.worlds.schema import (
-    ENV_MODELS,
-    LABEL_TAGS,
-    MODELS,
-    OBSERVATION_TYPES,
-    START_TAGS,
-    EnvWorldFile,
-    WorldFile,
-    show,
-)
+from mitlc.worlds.schema import LABEL_TAGS, MODELS, OBSERVATION_TYPES, START_TAGS, WorldFile, show
 from mitlc.worlds.trust import OutsideError, inside_folder
 
 if TYPE_CHECKING:
@@ -157,7 +149,7 @@ def _yaml_problem(err: yaml.MarkedYAMLError, text: str, filename: str) -> Proble
 def from_pydantic(error: ValidationError, env: bool = False) -> list[tuple[FieldPath, str, bool]]:
     """Each error as (the field's path, a message in the file's words, whether it is about a
     key rather than a value); union tags and ``[key]`` markers are dropped from the path.
-    ``env``: the error is of an env world file (:class:`~mitlc.worlds.schema.EnvWorldFile`)."""
+    ``env``: the error is of an env world file (:class:`~mitlc.worlds.env_schema.EnvWorldFile`)."""
     found = []
     is_tag = _is_env_tag if env else _is_tag
     for item in error.errors():

@@ -21,10 +21,10 @@ from mitlc.labels.geodesic import declared_occupancy
 from mitlc.worlds import gym_world
 from mitlc.worlds.costs import action_problems
 from mitlc.worlds.env_make import quiet
+from mitlc.worlds.env_schema import Env, EnvWorldFile
 from mitlc.worlds.env_task import EnvTask
 from mitlc.worlds.grid import Found
 from mitlc.worlds.model import World
-from mitlc.worlds.schema import Env, EnvWorldFile
 from mitlc.worlds.source import (
     Source,
     WorldError,
