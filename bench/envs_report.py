@@ -139,7 +139,8 @@ def report(runs: list[Run], tasks: list[Task], seeds: list[int], args: argparse.
         print(f"  P(mitlc > plain) {pair[0]:.3f} [{pair[1]:.3f}, {pair[2]:.3f}]")
     checked = targets(table, len(seeds))
     if checked:
-        print("\nissue 24's targets" + (" (scaled budgets: not the issue's)" if scale else ""))
+        heading = "the issues' targets (24; 44's maze)"
+        print("\n" + heading + (" (scaled budgets: not the issues')" if scale else ""))
     for row in checked:
         verdict = {True: "PASS", False: "FAIL", None: "NOT MEASURED"}[row["met"]]
         if "why" in row:
