@@ -326,19 +326,25 @@ class CounterfactualReplay(ReplayBuffer):
         rows: Rows = crm.rows(q, frontier, letter, env_reward, told, self.rng, rounds)
         i = rows.source
         reward = rows.reward
+        guide = bool(self.task.view.guide)
+        keys: tuple[str, ...] = ("distances_left", "distances") if self.shaping or guide else ()
+        keys += ("ways_left", "ways") if guide else ()
+        # each env's entries of the step's info, read once for the shaping and the way
+        read = {key: np.array([info[key] for info in infos], dtype=np.float64) for key in keys}
         if self.shaping:
-            left, reached = (np.array([info[key] for info in infos], dtype=np.float64)
-                             for key in ("distances_left", "distances"))  # fmt: skip
             gammas = np.full(len(reward), self.gamma)
-            reward = crm.shaped_reward(rows, gammas, left, reached, self.shaping)
+            reward = crm.shaped_reward(
+                rows, gammas, read["distances_left"], read["distances"], self.shaping
+            )
         steps = np.array([info.get("step", 0) for info in infos], dtype=np.int64)[i]
         truncated = ~rows.terminated & (steps >= crm.horizon)
         flat = np.asarray(obs).reshape(self.n_envs, -1)
         after = np.asarray(next_obs).reshape(self.n_envs, -1)
-        from_, to = None, None  # where the way is shown: what it is read from
-        if self.task.view.guide:
-            from_ = _where(infos, "distances_left", "ways_left", i)
-            to = _where(infos, "distances", "ways", i)
+        from_: Where | None = None  # where the way is shown: what it is read from
+        to: Where | None = None
+        if guide:
+            from_ = (read["distances_left"][i], read["ways_left"][i])
+            to = (read["distances"][i], read["ways"][i])
         return {
             "obs": self.task.observe(flat[i], rows.q, rows.frontier, from_),
             "next_obs": self.task.observe(after[i], rows.next_q, rows.next_frontier, to),
@@ -365,14 +371,6 @@ class CounterfactualReplay(ReplayBuffer):
             else:  # a jump (or an invalid action): the frontier stays
                 after = MonitorState(q, run.frontier, int(info.get("rounds", 0)), steps)
             self.runs[i] = after if (after.q, after.steps) == (q, steps) else None
-
-
-def _where(infos: list[dict[str, Any]], distances: str, ways: str, rows: IntArray) -> Where:
-    """The distances and directions (info keys ``distances``, ``ways``) of the env of each
-    of ``rows``."""
-    found = [np.array([info[key] for info in infos], dtype=np.float64)[rows]
-             for key in (distances, ways)]  # fmt: skip
-    return found[0], found[1]
 
 
 def replay_settings(config: TrainConfig, env: Any) -> dict[str, Any]:
